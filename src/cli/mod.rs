@@ -1,0 +1,37 @@
+//! Subcommands of the `silva` binary: argument definitions and dispatch.
+//!
+//! Each subcommand lives in its own file with an `Args` struct and a `run`
+//! function; this file only lists them.
+
+use clap::{Parser, Subcommand};
+
+mod info;
+
+/// silva: tree skeletons from LiDAR point clouds.
+#[derive(Debug, Parser)]
+#[command(version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print format, point count, bounding box and offset of a point cloud as JSON.
+    Info(info::Args),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Info(args) => info::run(args),
+    }
+}
+
+/// True when the error is a write to a closed pipe.
+pub fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    err.chain().any(|e| {
+        e.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}

@@ -1,0 +1,1 @@
+//! The reconstruction job queue kept in the database (issue 6).

@@ -1,0 +1,114 @@
+//! Nearest-neighbour queries over 3D points: the one kd-tree of the crate.
+//!
+//! Every stage that needs neighbours (clean-up, the dense and airborne graphs,
+//! evaluation) goes through [`PointIndex`], so there is one place that knows
+//! kiddo's API and its corner cases. It wraps kiddo's `ImmutableKdTree`,
+//! which is balanced at build time and, unlike the mutable tree, accepts any
+//! number of points with equal coordinates: duplicate-heavy or hostile clouds
+//! cannot make it panic.
+
+use std::num::NonZero;
+
+use glam::Vec3;
+use kiddo::SquaredEuclidean;
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+
+/// Leaf size of the kd-tree; 32 is kiddo's recommended default for 3D.
+const BUCKET: usize = 32;
+
+/// A neighbour found by a query: the point's index in the indexed slice and
+/// its squared distance to the query point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Neighbour {
+    /// Index into the slice the index was built from.
+    pub index: usize,
+    /// Squared Euclidean distance in m².
+    pub distance_sq: f32,
+}
+
+/// A static kd-tree over a slice of points (indices refer to that slice).
+///
+/// ```
+/// use glam::Vec3;
+/// use silva::spatial::PointIndex;
+///
+/// let pts = [Vec3::ZERO, Vec3::X, Vec3::new(5.0, 0.0, 0.0)];
+/// let index = PointIndex::new(&pts);
+/// let near = index.nearest_k(Vec3::new(0.9, 0.0, 0.0), 2);
+/// assert_eq!(near[0].index, 1);
+/// assert_eq!(index.within(Vec3::ZERO, 1.5).len(), 2);
+/// ```
+pub struct PointIndex {
+    tree: Option<ImmutableKdTree<f32, u32, 3, BUCKET>>,
+    len: usize,
+}
+
+impl PointIndex {
+    /// Builds the index. Points must be finite (readers guarantee it).
+    pub fn new(points: &[Vec3]) -> Self {
+        let coords: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
+        let tree = (!coords.is_empty()).then(|| ImmutableKdTree::new_from_slice(&coords));
+        Self {
+            tree,
+            len: points.len(),
+        }
+    }
+
+    /// Number of indexed points.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when no point is indexed.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The nearest indexed point, or `None` for an empty index.
+    pub fn nearest(&self, query: Vec3) -> Option<Neighbour> {
+        let tree = self.tree.as_ref()?;
+        let n = tree.nearest_one::<SquaredEuclidean>(&query.to_array());
+        Some(to_neighbour(n))
+    }
+
+    /// The `k` nearest points, closest first (fewer if the index is smaller).
+    /// The query point itself is included when it is indexed.
+    pub fn nearest_k(&self, query: Vec3, k: usize) -> Vec<Neighbour> {
+        let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZero::new(k)) else {
+            return Vec::new();
+        };
+        tree.nearest_n::<SquaredEuclidean>(&query.to_array(), k)
+            .into_iter()
+            .map(to_neighbour)
+            .collect()
+    }
+
+    /// All points within `radius` (inclusive), in no particular order.
+    pub fn within(&self, query: Vec3, radius: f32) -> Vec<Neighbour> {
+        let Some(tree) = self.tree.as_ref() else {
+            return Vec::new();
+        };
+        tree.within_unsorted::<SquaredEuclidean>(&query.to_array(), radius * radius)
+            .into_iter()
+            .map(to_neighbour)
+            .collect()
+    }
+
+    /// At most `k` points within `radius`, closest first.
+    pub fn nearest_k_within(&self, query: Vec3, k: usize, radius: f32) -> Vec<Neighbour> {
+        let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZero::new(k)) else {
+            return Vec::new();
+        };
+        tree.nearest_n_within::<SquaredEuclidean>(&query.to_array(), radius * radius, k, true)
+            .into_iter()
+            .map(to_neighbour)
+            .collect()
+    }
+}
+
+fn to_neighbour(n: kiddo::NearestNeighbour<f32, u32>) -> Neighbour {
+    Neighbour {
+        index: n.item as usize,
+        distance_sq: n.distance,
+    }
+}

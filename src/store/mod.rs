@@ -1,0 +1,1 @@
+//! Persistence over sqlx: PostgreSQL in production, SQLite by default (issue 6).
