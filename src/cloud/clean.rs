@@ -25,7 +25,8 @@ pub const ADTREE_DUPLICATE_FRACTION: f32 = 0.001;
 
 /// Removes points closer than `fraction_of_diagonal` × the bounding-box
 /// diagonal to an earlier kept point (AdTree uses 0.001). Of each group of
-/// near-duplicates the first in input order survives.
+/// near-duplicates the first in input order survives; exact copies are
+/// always duplicates. A negative or non-finite fraction is a no-op.
 ///
 /// ```
 /// use glam::{DVec3, Vec3};
@@ -42,7 +43,8 @@ pub fn remove_near_duplicates(cloud: &PointCloud, fraction_of_diagonal: f32) -> 
         return cloud.clone();
     };
     let radius = fraction_of_diagonal * (hi - lo).length();
-    if !(radius > 0.0 && radius.is_finite()) {
+    // A zero radius (all points equal) still removes exact duplicates.
+    if !(radius >= 0.0 && radius.is_finite()) {
         return cloud.clone();
     }
     let index = PointIndex::new(&cloud.points);
@@ -159,4 +161,73 @@ pub fn voxel_downsample(cloud: &PointCloud, voxel_m: f32) -> PointCloud {
     let mut keep: Vec<usize> = best.into_values().map(|(i, _)| i).collect();
     keep.sort_unstable();
     cloud.select(&keep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn cloud(points: Vec<Vec3>) -> PointCloud {
+        let n = points.len();
+        let mut c = PointCloud::from_points(DVec3::new(85_000.0, 446_000.0, 0.0), points);
+        c.classification = Some((0..n).map(|i| i as u8).collect());
+        c
+    }
+
+    #[test]
+    fn near_duplicates_use_the_bounding_box_diagonal() {
+        // Diagonal 10 m: the radius is 1 cm at AdTree's 0.001.
+        let c = cloud(vec![
+            Vec3::ZERO,
+            Vec3::new(0.009, 0.0, 0.0),
+            Vec3::new(0.02, 0.0, 0.0),
+            Vec3::new(10.0, 0.0, 0.0),
+        ]);
+        let out = remove_near_duplicates(&c, ADTREE_DUPLICATE_FRACTION);
+        assert_eq!(out.classification, Some(vec![0, 2, 3]));
+    }
+
+    #[test]
+    fn all_identical_points_collapse_to_one() {
+        let mut c = cloud(vec![Vec3::ONE; 1000]);
+        // A zero diagonal gives a zero radius, which still catches exact copies.
+        assert_eq!(remove_near_duplicates(&c, 0.001).len(), 1);
+        c.points.push(Vec3::new(2.0, 1.0, 1.0));
+        c.classification.as_mut().unwrap().push(7);
+        let out = remove_near_duplicates(&c, 0.001);
+        assert_eq!(out.classification, Some(vec![0, 7]));
+    }
+
+    #[test]
+    fn degenerate_parameters_are_no_ops() {
+        let c = cloud(vec![Vec3::ZERO, Vec3::X, Vec3::Y]);
+        assert_eq!(voxel_downsample(&c, 0.0), c);
+        assert_eq!(voxel_downsample(&c, f32::NAN), c);
+        assert_eq!(remove_statistical_outliers(&c, 0, 2.0), c);
+        assert_eq!(remove_statistical_outliers(&c, 5, 2.0), c);
+        assert_eq!(remove_near_duplicates(&c, -1.0), c);
+        let empty = PointCloud::default();
+        assert!(remove_near_duplicates(&empty, 0.001).is_empty());
+        assert!(voxel_downsample(&empty, 1.0).is_empty());
+    }
+
+    #[test]
+    fn voxel_downsample_keeps_one_point_per_voxel() {
+        let pts: Vec<Vec3> = (0..1000)
+            .map(|i| Vec3::new((i % 10) as f32, ((i / 10) % 10) as f32, (i / 100) as f32) * 0.1)
+            .collect();
+        let out = voxel_downsample(&cloud(pts), 0.5);
+        assert_eq!(out.len(), 8);
+    }
+
+    #[test]
+    fn outliers_among_duplicates() {
+        // Exact duplicates give zero distances; the lone far point still goes.
+        let mut pts = vec![Vec3::ZERO; 50];
+        pts.extend((0..50).map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0)));
+        pts.push(Vec3::new(0.0, 0.0, 50.0));
+        let out = remove_statistical_outliers(&cloud(pts), 6, 1.0);
+        assert_eq!(out.len(), 100);
+    }
 }

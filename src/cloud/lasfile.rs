@@ -39,7 +39,7 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     let start = input.stream_position()?;
     let file_len = remaining_len(&mut input)? + start;
     let raw_header = raw::Header::read_from(&mut input)
-        .map_err(|e| malformed(Format::Las, Location::Header, e.to_string()))?;
+        .map_err(|e| malformed(Format::Las, Location::Header, las_reason(&e)))?;
     let format = if raw_header.point_data_record_format & 0b1100_0000 != 0 {
         Format::Laz
     } else {
@@ -48,7 +48,7 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     let points = precheck_header(&raw_header, format, &mut input, start, file_len, opts)?;
     input.seek(SeekFrom::Start(start))?;
     let header = las::Header::new(&mut input)
-        .map_err(|e| malformed(format, Location::Header, e.to_string()))?;
+        .map_err(|e| malformed(format, Location::Header, las_reason(&e)))?;
     let details = FileDetails {
         format,
         las: Some(LasDetails {
@@ -173,7 +173,7 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
     builder: &mut CloudBuilder,
 ) -> Result<(), CloudError> {
     let bad_header = |reason: String| malformed(Format::Laz, Location::Header, reason);
-    let vlr = header.laz_vlr().map_err(|e| bad_header(e.to_string()))?;
+    let vlr = header.laz_vlr().map_err(|e| bad_header(las_reason(&e)))?;
     let record_len = header.point_format().len();
     if vlr.items_size() != u64::from(record_len) {
         return Err(bad_header(format!(
@@ -181,9 +181,15 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
             vlr.items_size()
         )));
     }
+    let data_start = input.stream_position()?;
     precheck_chunk_table(input, &vlr, points, file_len)?;
-    let mut decompressor = LasZipDecompressor::new(&mut *input, vlr)
-        .map_err(|e| malformed(Format::Laz, Location::Header, format!("LASzip: {e}")))?;
+    let mut decompressor = LasZipDecompressor::new(&mut *input, vlr).map_err(|e| {
+        malformed(
+            Format::Laz,
+            Location::Byte(data_start),
+            format!("cannot start LASzip decompression ({e})"),
+        )
+    })?;
     let mut buf = vec![0u8; usize::from(record_len)];
     for i in 0..points {
         decompressor.decompress_one(&mut buf).map_err(|e| {
@@ -221,7 +227,7 @@ fn precheck_chunk_table<R: Read + Seek>(
     input.read_exact(&mut head).map_err(|_| {
         bad(
             table_start,
-            "chunk table runs past the end of the file".to_owned(),
+            format!("truncated: the chunk table lies past the end of the file ({file_len} bytes)"),
         )
     })?;
     let chunks = u64::from(u32::from_le_bytes([head[4], head[5], head[6], head[7]]));
@@ -273,6 +279,16 @@ fn chunk_table_start<R: Read + Seek>(
         return Ok(Some(start));
     }
     Ok(read_i64_at(file_len.saturating_sub(8))?.and_then(valid))
+}
+
+/// One-line reason for a `las` error; an early end of file says so plainly.
+fn las_reason(e: &las::Error) -> String {
+    match e {
+        las::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "truncated: the file ends inside the header or its VLRs".to_owned()
+        }
+        other => other.to_string(),
+    }
 }
 
 /// Converts a raw record into an absolute point with its attributes.

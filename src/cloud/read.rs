@@ -206,6 +206,14 @@ pub(super) struct Attributes {
     pub(super) classification: Option<u8>,
 }
 
+/// Largest absolute coordinate accepted: beyond any projected or geocentric
+/// CRS in metres, so larger values are corrupt data.
+const MAX_ABS_M: f64 = 1e9;
+/// Largest distance from the first point: relative `f32` coordinates keep
+/// 1 mm resolution to about 8 km and 8 mm at 100 km; beyond that the cloud
+/// is not a tree or a tile, and the coordinates would be meaningless.
+const MAX_SPAN_M: f64 = 1e5;
+
 /// Collects absolute points into a [`PointCloud`] under the point limit.
 ///
 /// The offset is the first point rounded to whole metres, so that relative
@@ -246,14 +254,32 @@ impl CloudBuilder {
         attrs: Attributes,
         location: Location,
     ) -> Result<(), CloudError> {
-        if !p.is_finite() {
+        let cloud = &mut self.cloud;
+        let reason = if !p.is_finite() {
+            Some(format!("non-finite coordinate ({}, {}, {})", p.x, p.y, p.z))
+        } else if p.abs().max_element() > MAX_ABS_M {
+            Some(format!(
+                "implausible coordinate ({}, {}, {}) m",
+                p.x, p.y, p.z
+            ))
+        } else if !cloud.is_empty() && (p - cloud.offset).abs().max_element() > MAX_SPAN_M {
+            Some(format!(
+                "point ({}, {}, {}) lies more than {} km from the first point",
+                p.x,
+                p.y,
+                p.z,
+                MAX_SPAN_M / 1000.0
+            ))
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
             return Err(CloudError::Malformed {
                 format: self.format,
                 location,
-                reason: format!("non-finite coordinate ({}, {}, {})", p.x, p.y, p.z),
+                reason,
             });
         }
-        let cloud = &mut self.cloud;
         if cloud.points.len() >= self.limit {
             return Err(CloudError::TooManyPoints {
                 format: self.format,
