@@ -36,8 +36,15 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     opts: &ReadOptions,
 ) -> Result<(PointCloud, FileDetails), CloudError> {
     let mut input = BufReader::new(input);
-    let start = input.stream_position()?;
-    let file_len = remaining_len(&mut input)? + start;
+    // LAS offsets (point data, EVLRs, the LAZ chunk table) are absolute.
+    if input.stream_position()? != 0 {
+        return Err(malformed(
+            Format::Las,
+            Location::Byte(0),
+            "LAS data must start at the beginning of the stream",
+        ));
+    }
+    let file_len = remaining_len(&mut input)?;
     let raw_header = raw::Header::read_from(&mut input)
         .map_err(|e| malformed(Format::Las, Location::Header, las_reason(&e)))?;
     let format = if raw_header.point_data_record_format & 0b1100_0000 != 0 {
@@ -45,8 +52,8 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     } else {
         Format::Las
     };
-    let points = precheck_header(&raw_header, format, &mut input, start, file_len, opts)?;
-    input.seek(SeekFrom::Start(start))?;
+    let points = precheck_header(&raw_header, format, &mut input, file_len, opts)?;
+    input.rewind()?;
     let header = las::Header::new(&mut input)
         .map_err(|e| malformed(format, Location::Header, las_reason(&e)))?;
     let details = FileDetails {
@@ -56,7 +63,7 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
             point_format: raw_header.point_data_record_format & 0b0011_1111,
         }),
     };
-    let points_start = start + u64::from(raw_header.offset_to_point_data);
+    let points_start = u64::from(raw_header.offset_to_point_data);
     let record_len = u64::from(raw_header.point_data_record_length);
     let expected = points.min((file_len - points_start.min(file_len)) / record_len.max(1));
     let with = Attributes {
@@ -80,7 +87,6 @@ fn precheck_header<R: Read + Seek>(
     h: &raw::Header,
     format: Format,
     input: &mut R,
-    start: u64,
     file_len: u64,
     opts: &ReadOptions,
 ) -> Result<u64, CloudError> {
@@ -94,15 +100,14 @@ fn precheck_header<R: Read + Seek>(
             limit: opts.max_points,
         });
     }
-    let points_start = start + u64::from(h.offset_to_point_data);
+    let points_start = u64::from(h.offset_to_point_data);
     if points_start > file_len || h.offset_to_point_data < u32::from(h.header_size) {
         return Err(malformed(
             format,
-            Location::Byte(start + 96),
+            Location::Byte(96),
             format!(
                 "offset to point data {} is outside the file ({} bytes) or inside the header",
-                h.offset_to_point_data,
-                file_len - start
+                h.offset_to_point_data, file_len
             ),
         ));
     }
@@ -117,7 +122,7 @@ fn precheck_header<R: Read + Seek>(
         ));
     }
     if let Some(evlr) = h.evlr {
-        precheck_evlr(evlr.start_of_first_evlr, format, input, start, file_len)?;
+        precheck_evlr(evlr.start_of_first_evlr, format, input, file_len)?;
     }
     Ok(points)
 }
@@ -125,13 +130,11 @@ fn precheck_header<R: Read + Seek>(
 /// Reads the first extended VLR's declared length and rejects it when it
 /// runs past the end of the file (the `las` crate would allocate it whole).
 fn precheck_evlr<R: Read + Seek>(
-    evlr_start: u64,
+    at: u64,
     format: Format,
     input: &mut R,
-    start: u64,
     file_len: u64,
 ) -> Result<(), CloudError> {
-    let at = start.saturating_add(evlr_start);
     let bad = |reason: &str| malformed(format, Location::Byte(at), reason.to_owned());
     if at.saturating_add(EVLR_HEADER_LEN) > file_len {
         return Err(bad("extended VLR starts beyond the end of the file"));

@@ -98,6 +98,10 @@ fn looks_like_text(head: &[u8]) -> bool {
 
 /// Reads a point cloud, detecting the format from its content.
 ///
+/// Reading starts at the stream's current position, except that LAS/LAZ
+/// must start at position 0 (their internal offsets are absolute). The
+/// `Send + Sync` bounds come from the LASzip decoder.
+///
 /// ```
 /// use std::io::Cursor;
 /// use silva::cloud::{Format, ReadOptions, read};
