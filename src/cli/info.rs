@@ -16,6 +16,12 @@ pub struct Args {
     max_points: usize,
 }
 
+/// Coordinates rounded to 1 µm: points are stored as `f32` offsets, so
+/// digits below that are conversion noise, not data.
+fn micrometres(v: glam::DVec3) -> [f64; 3] {
+    (v * 1e6).round().to_array().map(|c| c / 1e6)
+}
+
 /// Reads the file and prints format, point count, offset and absolute
 /// bounds (plus LAS version and point format for LAS/LAZ) as one JSON object.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -32,7 +38,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "format": details.format,
         "points": cloud.len(),
         "offset": cloud.offset.to_array(),
-        "bounds": { "min": min.to_array(), "max": max.to_array() },
+        "bounds": { "min": micrometres(min), "max": micrometres(max) },
     });
     if let Some(las) = details.las {
         summary["las"] = serde_json::to_value(las)?;
