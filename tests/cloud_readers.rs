@@ -250,10 +250,10 @@ fn laz_error_point(laz: &[u8]) -> u64 {
     }
 }
 
-/// Truncated compressed points: decoding stops with the index of the point
-/// it could not decode. Point-wise LAZ (LAS 1.2, format 1) fails mid-way;
-/// layered LAZ (LAS 1.4, format 6, what silva writes) reads each chunk's
-/// layers whole, so it fails at the chunk's first point.
+/// Truncated compressed points. Point-wise LAZ (LAS 1.2, format 1) is
+/// decoded point by point and fails at the first point it cannot decode.
+/// Layered LAZ (LAS 1.4, format 6, what silva writes) declares each chunk's
+/// layer sizes up front, so the cut is found before decoding, at the chunk.
 #[test]
 fn laz_truncated_inside_the_point_data_names_the_point() {
     let xyz = |i: usize| {
@@ -265,7 +265,10 @@ fn laz_truncated_inside_the_point_data_names_the_point() {
     };
     let pts: Vec<Vec3> = (0..3000).map(|i| xyz(i).as_vec3()).collect();
     let layered = to_laz_bytes(&PointCloud::from_points(DVec3::ZERO, pts)).unwrap();
-    assert_eq!(laz_error_point(&cut_laz_points(&layered)), 0);
+    let data_start = u32::from_le_bytes(layered[96..100].try_into().unwrap()) as u64;
+    let err = read_bytes(&cut_laz_points(&layered), &ReadOptions::default()).unwrap_err();
+    let reason = assert_malformed(err, Format::Laz, Location::Byte(data_start + 8));
+    assert!(reason.contains("chunk 0"), "{reason}");
 
     let mut builder = las::Builder::from((1, 2));
     builder.point_format = las::point::Format::new(1).unwrap();
@@ -286,6 +289,20 @@ fn laz_truncated_inside_the_point_data_names_the_point() {
     let pointwise = writer.into_inner().unwrap().into_inner();
     let i = laz_error_point(&cut_laz_points(&pointwise));
     assert!((1000..3000).contains(&i), "failed at point {i}");
+}
+
+/// Regression (found by `cargo fuzz run las`): a layered LAZ whose first
+/// layer claims 4 GiB made the `laz` crate allocate it before reading.
+#[test]
+fn laz_layer_size_beyond_the_file() {
+    let mut laz = bytes("tiny.laz");
+    let chunk = u32::from_le_bytes(laz[96..100].try_into().unwrap()) as usize + 8;
+    let record_len = u16::from_le_bytes(laz[105..107].try_into().unwrap()) as usize;
+    let first_layer = chunk + record_len + 4;
+    laz[first_layer..first_layer + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    let err = read_bytes(&laz, &ReadOptions::default()).unwrap_err();
+    let reason = assert_malformed(err, Format::Laz, Location::Byte(chunk as u64));
+    assert!(reason.contains("layers"), "{reason}");
 }
 
 #[test]

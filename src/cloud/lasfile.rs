@@ -185,7 +185,8 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
         )));
     }
     let data_start = input.stream_position()?;
-    precheck_chunk_table(input, &vlr, points, file_len)?;
+    let table = precheck_chunk_table(input, &vlr, points, file_len)?;
+    precheck_layers(input, &vlr, table.as_ref(), points, file_len)?;
     let mut decompressor = LasZipDecompressor::new(&mut *input, vlr).map_err(|e| {
         malformed(
             Format::Laz,
@@ -211,19 +212,20 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
 
 /// Bounds the chunk table before `laz` allocates it, and checks that a
 /// variable-size table covers every point the header promises. Leaves the
-/// stream where it found it (the start of the point data).
+/// stream where it found it (the start of the point data). Returns the
+/// table when there is one.
 fn precheck_chunk_table<R: Read + Seek>(
     input: &mut R,
     vlr: &LazVlr,
     points: u64,
     file_len: u64,
-) -> Result<(), CloudError> {
+) -> Result<Option<ChunkTable>, CloudError> {
     let data_start = input.stream_position()?;
     let bad = |at: u64, reason: String| malformed(Format::Laz, Location::Byte(at), reason);
     let Some(table_start) = chunk_table_start(input, data_start, file_len)? else {
         // No table: `laz` falls back to sequential reading or reports it.
         input.seek(SeekFrom::Start(data_start))?;
-        return Ok(());
+        return Ok(None);
     };
     input.seek(SeekFrom::Start(table_start))?;
     let mut head = [0u8; 8];
@@ -255,6 +257,99 @@ fn precheck_chunk_table<R: Read + Seek>(
                 format!("chunk table covers {covered} points but the header promises {points}"),
             ));
         }
+    }
+    input.seek(SeekFrom::Start(data_start))?;
+    Ok(Some(table))
+}
+
+/// Number of layers an item contributes to a layered (LAS 1.4, LASzip v3/v4)
+/// chunk; `None` for items of the older point-wise compressors.
+fn layer_count(item: &laz::LazItem) -> Option<u64> {
+    use laz::LazItemType as T;
+    Some(match item.item_type() {
+        // channel/returns/xy, z, classification, flags, intensity,
+        // scan angle, user data, point source, gps time
+        T::Point14 => 9,
+        T::RGB14 | T::WavePacket14 => 1,
+        T::RGBNIR14 => 2,
+        T::Byte14(n) => u64::from(n),
+        _ => return None,
+    })
+}
+
+/// Walks the chunks of a layered LAZ and checks every declared layer size
+/// against the file, because `laz` allocates each layer before reading it
+/// (a corrupt 4 GiB size would exhaust memory). A layered chunk is: the first
+/// point raw, a `u32` point count, one `u32` size per layer, the layers.
+fn precheck_layers<R: Read + Seek>(
+    input: &mut R,
+    vlr: &LazVlr,
+    table: Option<&ChunkTable>,
+    points: u64,
+    file_len: u64,
+) -> Result<(), CloudError> {
+    let layered = vlr
+        .items()
+        .first()
+        .is_some_and(|i| matches!(i.version(), 3 | 4));
+    if !layered {
+        return Ok(());
+    }
+    let layers = vlr
+        .items()
+        .iter()
+        .map(layer_count)
+        .try_fold(0u64, |sum, n| n.map(|n| sum + n))
+        .ok_or_else(|| {
+            malformed(
+                Format::Laz,
+                Location::Header,
+                "LASzip items mix layered and point-wise compression",
+            )
+        })?;
+    let data_start = input.stream_position()?;
+    let prefix = vlr.items_size() + 4 + 4 * layers;
+    // Past the 8-byte chunk table offset.
+    let mut at = data_start + 8;
+    let mut seen = 0u64;
+    let mut chunk = 0usize;
+    while seen < points {
+        let bad = |reason: String| malformed(Format::Laz, Location::Byte(at), reason);
+        if at.saturating_add(prefix) > file_len {
+            return Err(bad(format!(
+                "truncated: chunk {chunk} starts past the end of the file ({file_len} bytes)"
+            )));
+        }
+        input.seek(SeekFrom::Start(at + vlr.items_size()))?;
+        let mut word = [0u8; 4];
+        input.read_exact(&mut word)?;
+        let count = u64::from(u32::from_le_bytes(word));
+        let mut layer_bytes = 0u64;
+        for _ in 0..layers {
+            input.read_exact(&mut word)?;
+            layer_bytes += u64::from(u32::from_le_bytes(word));
+        }
+        let end = at + prefix + layer_bytes;
+        if end > file_len {
+            return Err(bad(format!(
+                "truncated or corrupt: chunk {chunk} declares {layer_bytes} bytes of layers but the file ends at byte {file_len}"
+            )));
+        }
+        // The decoder's own rule for where a chunk ends.
+        let in_chunk = if !vlr.uses_variable_size_chunks() {
+            u64::from(vlr.chunk_size())
+        } else if let Some(t) = table {
+            t.as_ref().get(chunk).map_or(0, |e| e.point_count)
+        } else {
+            count
+        };
+        if in_chunk == 0 {
+            // The decoder then never leaves this chunk; nothing further to check.
+            break;
+        }
+        seen = seen.saturating_add(in_chunk);
+        at = end;
+        chunk += 1;
     }
     input.seek(SeekFrom::Start(data_start))?;
     Ok(())
