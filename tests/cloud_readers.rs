@@ -305,6 +305,19 @@ fn laz_layer_size_beyond_the_file() {
     assert!(reason.contains("layers"), "{reason}");
 }
 
+/// Regression (found by `cargo fuzz run las`): corrupt entropy-coded bytes
+/// make laz 0.12's arithmetic decoder index out of bounds; the panic is
+/// contained and reported as an error at the point being decoded.
+#[test]
+fn laz_decoder_panic_becomes_an_error() {
+    let reason = assert_malformed(
+        read_err("broken_decoder_panic.laz"),
+        Format::Laz,
+        Location::Point(5),
+    );
+    assert!(reason.contains("corrupt"), "{reason}");
+}
+
 #[test]
 fn laz_chunk_table_claiming_billions_of_chunks() {
     let mut laz = bytes("tiny.laz");
@@ -442,6 +455,7 @@ fn silva_info_on_broken_files_fails_with_one_line() {
         "broken_garbage.las",
         "broken_short.las",
         "broken_truncated.laz",
+        "broken_decoder_panic.laz",
         "broken_short.ply",
         "broken_inf.ply",
         "does_not_exist.xyz",

@@ -8,7 +8,9 @@
 //! decoders trust their input: an extended VLR may declare a length of
 //! 2^64 bytes, a LAZ chunk table may declare 4 billion chunks, and a
 //! variable-size chunk table that covers fewer points than the header
-//! promises makes the decompressor index past the table's end.
+//! promises makes the decompressor index past the table's end. What cannot
+//! be checked up front (corrupt entropy-coded bytes) runs under
+//! [`guard::contain`].
 
 use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 
@@ -17,7 +19,7 @@ use las::raw;
 use laz::laszip::{ChunkTable, LasZipDecompressor, LazVlr};
 
 use super::read::{Attributes, CloudBuilder, FileDetails, LasDetails, ReadOptions, remaining_len};
-use super::{CloudError, Format, Location, PointCloud};
+use super::{CloudError, Format, Location, PointCloud, guard};
 
 /// Size of an extended VLR header (LAS 1.4 §2.7).
 const EVLR_HEADER_LEN: u64 = 60;
@@ -54,7 +56,8 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     };
     let points = precheck_header(&raw_header, format, &mut input, file_len, opts)?;
     input.rewind()?;
-    let header = las::Header::new(&mut input)
+    let header = guard::contain(|| las::Header::new(&mut input))
+        .map_err(|panic| malformed(format, Location::Header, panic))?
         .map_err(|e| malformed(format, Location::Header, las_reason(&e)))?;
     let details = FileDetails {
         format,
@@ -73,11 +76,20 @@ pub(super) fn read<R: Read + Seek + Send + Sync>(
     };
     let mut builder = CloudBuilder::new(format, opts, expected, with);
     input.seek(SeekFrom::Start(points_start))?;
-    if format == Format::Laz {
-        read_laz_points(&mut input, &header, points, file_len, &mut builder)?;
-    } else {
-        read_las_points(&mut input, &header, points, points_start, &mut builder)?;
-    }
+    guard::contain(|| {
+        if format == Format::Laz {
+            read_laz_points(&mut input, &header, points, file_len, &mut builder)
+        } else {
+            read_las_points(&mut input, &header, points, points_start, &mut builder)
+        }
+    })
+    .map_err(|panic| {
+        malformed(
+            format,
+            Location::Point(builder.len() as u64),
+            format!("corrupt data: the decoder failed ({panic})"),
+        )
+    })??;
     Ok((builder.finish(), details))
 }
 

@@ -137,6 +137,7 @@ impl PointCloud {
 
 pub mod clean;
 mod error;
+mod guard;
 mod lasfile;
 mod ply;
 mod read;

@@ -309,6 +309,11 @@ impl CloudBuilder {
         Ok(())
     }
 
+    /// Points accepted so far.
+    pub(super) fn len(&self) -> usize {
+        self.cloud.len()
+    }
+
     /// The finished cloud (possibly empty; callers report emptiness).
     pub(super) fn finish(self) -> PointCloud {
         self.cloud
