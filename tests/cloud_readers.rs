@@ -318,6 +318,19 @@ fn laz_decoder_panic_becomes_an_error() {
     assert!(reason.contains("corrupt"), "{reason}");
 }
 
+/// Regression (found by `cargo fuzz run las`): corrupt GPS time data made
+/// laz 0.12's point-wise GPS decoder recurse until the stack overflowed,
+/// which aborts the process. The depth limit turns it into an error.
+#[test]
+fn laz_gps_time_recursion_is_cut_off() {
+    let reason = assert_malformed(
+        read_err("broken_gps_recursion.laz"),
+        Format::Laz,
+        Location::Point(20),
+    );
+    assert!(reason.contains("recursed too deeply"), "{reason}");
+}
+
 #[test]
 fn laz_chunk_table_claiming_billions_of_chunks() {
     let mut laz = bytes("tiny.laz");
@@ -456,6 +469,7 @@ fn silva_info_on_broken_files_fails_with_one_line() {
         "broken_short.las",
         "broken_truncated.laz",
         "broken_decoder_panic.laz",
+        "broken_gps_recursion.laz",
         "broken_short.ply",
         "broken_inf.ply",
         "does_not_exist.xyz",

@@ -16,6 +16,7 @@ use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 
 use glam::DVec3;
 use las::raw;
+use laz::DecompressionSelection;
 use laz::laszip::{ChunkTable, LasZipDecompressor, LazVlr};
 
 use super::read::{Attributes, CloudBuilder, FileDetails, LasDetails, ReadOptions, remaining_len};
@@ -199,14 +200,68 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
     let data_start = input.stream_position()?;
     let table = precheck_chunk_table(input, &vlr, points, file_len)?;
     precheck_layers(input, &vlr, table.as_ref(), points, file_len)?;
-    let mut decompressor = LasZipDecompressor::new(&mut *input, vlr).map_err(|e| {
+    // The decoder runs on its own thread so that its recursion (see
+    // `DepthLimitedReader`) has a known stack to stay within.
+    std::thread::scope(|scope| {
+        std::thread::Builder::new()
+            .name("laz-decoder".to_owned())
+            .stack_size(DECODER_STACK)
+            .spawn_scoped(scope, || {
+                guard::contain(|| decode_laz(input, header, vlr, data_start, points, builder))
+                    .unwrap_or_else(|panic| {
+                        Err(malformed(
+                            Format::Laz,
+                            Location::Point(builder.len() as u64),
+                            format!("corrupt data: the decoder failed ({panic})"),
+                        ))
+                    })
+            })
+            .map_err(CloudError::Io)?
+            .join()
+            .unwrap_or_else(|_| {
+                Err(malformed(
+                    Format::Laz,
+                    Location::Header,
+                    "decoder thread failed",
+                ))
+            })
+    })
+}
+
+/// Stack of the decoder thread, and how deep the decoder may recurse in it.
+/// Between two byte reads a saturated arithmetic model lets the recursion
+/// go about 36 000 levels (≈ 2–5 MB) deeper, which the margin covers.
+const DECODER_STACK: usize = 64 << 20;
+const DECODER_MAX_DEPTH: usize = 16 << 20;
+
+/// The point loop proper, on the decoder thread.
+fn decode_laz<R: Read + Seek + Send + Sync>(
+    input: &mut R,
+    header: &las::Header,
+    vlr: LazVlr,
+    data_start: u64,
+    points: u64,
+    builder: &mut CloudBuilder,
+) -> Result<(), CloudError> {
+    let record_len = usize::from(header.point_format().len());
+    let reader = DepthLimitedReader {
+        inner: input,
+        base: stack_address(),
+    };
+    // silva keeps x, y, z, return number, intensity and classification. Not
+    // decoding GPS time also avoids the layered decoder's recursive GPS path.
+    let selection = DecompressionSelection::base()
+        .decompress_z()
+        .decompress_intensity()
+        .decompress_classification();
+    let mut decompressor = LasZipDecompressor::selective(reader, vlr, selection).map_err(|e| {
         malformed(
             Format::Laz,
             Location::Byte(data_start),
             format!("cannot start LASzip decompression ({e})"),
         )
     })?;
-    let mut buf = vec![0u8; usize::from(record_len)];
+    let mut buf = vec![0u8; record_len];
     for i in 0..points {
         decompressor.decompress_one(&mut buf).map_err(|e| {
             malformed(
@@ -220,6 +275,42 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
         push_raw(builder, &p, header, Location::Point(i))?;
     }
     Ok(())
+}
+
+/// An address on the current stack, to measure how deep a call chain went.
+/// Only compared, never dereferenced.
+fn stack_address() -> usize {
+    let marker = 0u8;
+    std::hint::black_box(&marker) as *const u8 as usize
+}
+
+/// The reader handed to the LASzip decoder. laz's point-wise GPS time
+/// decoder (LASzip v1/v2, used by LAS 1.2 formats 1 and 3) calls itself once
+/// per "switch sequence" symbol; corrupt data can repeat that symbol for
+/// millions of levels and overflow the stack, which no `Result` or
+/// `catch_unwind` survives (found by `cargo fuzz run las`). Every level
+/// eventually reads input, so this reader refuses to read once the call chain
+/// is deeper than [`DECODER_MAX_DEPTH`], and the decoder unwinds with an error.
+struct DepthLimitedReader<'a, R> {
+    inner: &'a mut R,
+    base: usize,
+}
+
+impl<R: Read> Read for DepthLimitedReader<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.base.abs_diff(stack_address()) > DECODER_MAX_DEPTH {
+            return Err(std::io::Error::other(
+                "the decoder recursed too deeply (corrupt GPS time data)",
+            ));
+        }
+        self.inner.read(buf)
+    }
+}
+
+impl<R: Seek> Seek for DepthLimitedReader<'_, R> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(pos)
+    }
 }
 
 /// Bounds the chunk table before `laz` allocates it, and checks that a
