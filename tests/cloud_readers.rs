@@ -136,10 +136,14 @@ fn missing_column_names_the_line() {
 
 #[test]
 fn empty_file_is_an_empty_cloud_error() {
-    assert!(matches!(
-        read_err("broken_empty.xyz"),
-        CloudError::Empty(Format::Xyz)
-    ));
+    // Zero bytes: no format can be detected from content, and none is guessed.
+    let err = read_err("broken_empty.xyz");
+    assert!(
+        matches!(&err, CloudError::UnknownFormat(m) if m.contains("empty (0 bytes)")),
+        "{err}"
+    );
+    let err = read_as(Cursor::new(b""), Format::Xyz, &ReadOptions::default()).unwrap_err();
+    assert!(matches!(err, CloudError::Empty(Format::Xyz)));
     let comments_only = read_bytes(b"# nothing here\n\n", &ReadOptions::default());
     assert!(matches!(comments_only, Err(CloudError::Empty(Format::Xyz))));
 }

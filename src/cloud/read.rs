@@ -56,7 +56,8 @@ pub const DETECT_LEN: usize = 4096;
 ///
 /// LAS/LAZ start with `LASF` (LAZ sets a compression bit in the point format
 /// byte), PLY starts with a `ply` line, and anything else that looks like
-/// text is taken as XYZ. An empty input counts as (empty) XYZ text.
+/// text is taken as XYZ. Zero bytes match nothing: no format can be told
+/// from an empty file (a comment-only text file is an empty XYZ, though).
 ///
 /// ```
 /// use silva::cloud::{Format, detect};
@@ -64,8 +65,12 @@ pub const DETECT_LEN: usize = 4096;
 /// assert_eq!(detect(b"ply\nformat ascii 1.0\n"), Some(Format::Ply));
 /// assert_eq!(detect(b"1.0 2.0 3.0\n"), Some(Format::Xyz));
 /// assert_eq!(detect(&[0xff, 0x00, 0x13]), None);
+/// assert_eq!(detect(b""), None);
 /// ```
 pub fn detect(head: &[u8]) -> Option<Format> {
+    if head.is_empty() {
+        return None;
+    }
     const POINT_FORMAT_BYTE: usize = 104;
     if head.starts_with(b"LASF") {
         // Bit 7 (LASzip) or bit 6 (old LASzip) of the point format id.
@@ -128,6 +133,11 @@ pub fn read_with_details<R: Read + Seek + Send + Sync>(
     (&mut input)
         .take(DETECT_LEN as u64)
         .read_to_end(&mut head)?;
+    if head.is_empty() {
+        return Err(CloudError::UnknownFormat(
+            "the input is empty (0 bytes)".to_owned(),
+        ));
+    }
     let format = detect(&head).ok_or_else(|| {
         CloudError::UnknownFormat(format!(
             "the first bytes are neither LAS/LAZ, PLY nor text (starts with {})",
@@ -186,11 +196,7 @@ pub fn read_bytes(bytes: &[u8], opts: &ReadOptions) -> Result<(PointCloud, Forma
 /// The first bytes in hex, for error messages about unknown content.
 fn hex_preview(head: &[u8]) -> String {
     let shown: Vec<String> = head.iter().take(8).map(|b| format!("{b:02x}")).collect();
-    if shown.is_empty() {
-        "nothing".to_owned()
-    } else {
-        format!("0x{}", shown.join(""))
-    }
+    format!("0x{}", shown.join(""))
 }
 
 /// Remaining bytes from the current position to the end of the stream; the
