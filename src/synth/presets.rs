@@ -12,12 +12,15 @@ use super::weber_penn::{CrownShape, LevelParams, TreeParams};
 impl TreeParams {
     /// The parameters of a species.
     ///
-    /// | species | height | DBH | crown |
-    /// |---|---|---|---|
-    /// | oak | 16–23 m | 0.5–0.8 m | broad, hemispherical, twisting limbs |
-    /// | birch | 15–21 m | 0.25–0.4 m | slender, drooping twigs |
-    /// | poplar | 21–29 m | 0.5–0.8 m | columnar (Lombardy), steep branches |
-    /// | pine | 16–23 m | 0.35–0.55 m | conical, whorled, strong leader |
+    /// Ranges over seeds 0–59 (height of the highest node, stem diameter at
+    /// 1.3 m, internodes):
+    ///
+    /// | species | height | DBH | internodes | crown |
+    /// |---|---|---|---|---|
+    /// | oak | 15–22 m | 0.46–0.71 m | 2,600–5,600 | broad, hemispherical, twisting limbs |
+    /// | birch | 14–21 m | 0.23–0.37 m | 1,700–3,000 | slender, drooping twigs |
+    /// | poplar | 19–29 m | 0.43–0.71 m | 1,000–1,800 | columnar (Lombardy), steep branches |
+    /// | pine | 15–21 m | 0.33–0.52 m | 1,200–2,400 | conical, whorled, strong leader |
     pub fn preset(species: Species) -> TreeParams {
         match species {
             Species::Oak => oak(),
@@ -55,8 +58,8 @@ fn level(length: f32, branches: u32, down_angle_deg: f32, internode_m: f32) -> L
 fn oak() -> TreeParams {
     TreeParams {
         shape: CrownShape::Hemispherical,
-        scale_m: 16.0,
-        scale_v_m: 2.0,
+        scale_m: 17.0,
+        scale_v_m: 1.8,
         ratio: 0.018,
         ratio_power: 1.3,
         flare: 0.6,
