@@ -10,6 +10,8 @@ use silva::cloud::{Format, ReadOptions, read_as};
 
 fuzz_target!(|data: &[u8]| {
     // A small limit keeps each run fast; the limit itself is what is tested.
-    let opts = ReadOptions { max_points: 100_000 };
+    let opts = ReadOptions {
+        max_points: 100_000,
+    };
     let _ = read_as(Cursor::new(data), Format::Las, &opts);
 });
