@@ -335,6 +335,21 @@ fn laz_gps_time_recursion_is_cut_off() {
     assert!(reason.contains("recursed too deeply"), "{reason}");
 }
 
+/// Regression (found by `cargo fuzz run las`): layered items declared with
+/// the point-wise compressor made laz read layer sizes 8 bytes early and
+/// allocate a garbage 4 GiB layer.
+#[test]
+fn laz_compressor_must_match_item_versions() {
+    let mut laz = bytes("tiny.laz");
+    let header_size = u16::from_le_bytes(laz[94..96].try_into().unwrap()) as usize;
+    let compressor = header_size + 54; // first VLR's data
+    assert_eq!(laz[compressor..compressor + 2], 3u16.to_le_bytes());
+    laz[compressor..compressor + 2].copy_from_slice(&1u16.to_le_bytes());
+    let err = read_bytes(&laz, &ReadOptions::default()).unwrap_err();
+    let reason = assert_malformed(err, Format::Laz, Location::Header);
+    assert!(reason.contains("compressor 1"), "{reason}");
+}
+
 #[test]
 fn laz_chunk_table_claiming_billions_of_chunks() {
     let mut laz = bytes("tiny.laz");

@@ -199,7 +199,8 @@ fn read_laz_points<R: Read + Seek + Send + Sync>(
     }
     let data_start = input.stream_position()?;
     let table = precheck_chunk_table(input, &vlr, points, file_len)?;
-    precheck_layers(input, &vlr, table.as_ref(), points, file_len)?;
+    let compressor = laszip_compressor(header)?;
+    precheck_layers(input, &vlr, compressor, table.as_ref(), points, file_len)?;
     // The decoder runs on its own thread so that its recursion (see
     // `DepthLimitedReader`) has a known stack to stay within.
     std::thread::scope(|scope| {
@@ -365,6 +366,37 @@ fn precheck_chunk_table<R: Read + Seek>(
     Ok(Some(table))
 }
 
+/// LASzip's compressor codes (LASzip VLR, first `u16`).
+const POINT_WISE: u16 = 1;
+const POINT_WISE_CHUNKED: u16 = 2;
+const LAYERED_CHUNKED: u16 = 3;
+
+/// The compressor code of the LASzip VLR. laz does not expose it, and some
+/// combinations it accepts lead it astray (a point-wise stream with variable
+/// chunks panics; layered items without chunks are looked for 8 bytes early),
+/// so silva accepts only the combinations LASzip writes.
+fn laszip_compressor(header: &las::Header) -> Result<u16, CloudError> {
+    let data = header
+        .vlrs()
+        .iter()
+        .find(|v| las::laz::is_laszip_vlr(v))
+        .map(|v| v.data.as_slice())
+        .unwrap_or_default();
+    let byte = |i: usize| data.get(i).copied().unwrap_or(0);
+    let code = u16::from_le_bytes([byte(0), byte(1)]);
+    // Chunk size u32::MAX (bytes 12..16) marks variable-size chunks.
+    let variable = (12..16).all(|i| byte(i) == 0xff);
+    match code {
+        POINT_WISE if !variable => Ok(code),
+        POINT_WISE_CHUNKED | LAYERED_CHUNKED => Ok(code),
+        _ => Err(malformed(
+            Format::Laz,
+            Location::Header,
+            format!("unsupported LASzip compressor {code} (variable chunks: {variable})"),
+        )),
+    }
+}
+
 /// Number of layers an item contributes to a layered (LAS 1.4, LASzip v3/v4)
 /// chunk; `None` for items of the older point-wise compressors.
 fn layer_count(item: &laz::LazItem) -> Option<u64> {
@@ -387,6 +419,7 @@ fn layer_count(item: &laz::LazItem) -> Option<u64> {
 fn precheck_layers<R: Read + Seek>(
     input: &mut R,
     vlr: &LazVlr,
+    compressor: u16,
     table: Option<&ChunkTable>,
     points: u64,
     file_len: u64,
@@ -395,6 +428,14 @@ fn precheck_layers<R: Read + Seek>(
         .items()
         .first()
         .is_some_and(|i| matches!(i.version(), 3 | 4));
+    if layered != (compressor == LAYERED_CHUNKED) {
+        // laz would then look for the chunks elsewhere than LASzip writes them.
+        return Err(malformed(
+            Format::Laz,
+            Location::Header,
+            format!("LASzip compressor {compressor} does not match the item versions"),
+        ));
+    }
     if !layered {
         return Ok(());
     }
