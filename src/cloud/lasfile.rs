@@ -4,13 +4,16 @@
 //! itself (rather than `las::Reader`) so that it can (1) check the header
 //! against the file size *before* anything is allocated, (2) name the point
 //! or byte where decoding failed, and (3) read from borrowed, non-`'static`
-//! sources such as an upload buffer. The pre-checks exist because the
-//! decoders trust their input: an extended VLR may declare a length of
-//! 2^64 bytes, a LAZ chunk table may declare 4 billion chunks, and a
-//! variable-size chunk table that covers fewer points than the header
-//! promises makes the decompressor index past the table's end. What cannot
-//! be checked up front (corrupt entropy-coded bytes) runs under
-//! [`guard::contain`].
+//! sources such as an upload buffer.
+//!
+//! The decoders trust their input, and `cargo fuzz run las` showed what that
+//! costs. Checked up front: an extended VLR may declare 2^64 bytes, a LAZ
+//! chunk table 4 billion chunks, a layered chunk 4 GiB layers (all allocated
+//! before reading); a variable-size chunk table may cover fewer points than
+//! the header promises (the decoder then indexes past it); odd compressor and
+//! item combinations send laz to the wrong offsets. Contained while decoding:
+//! corrupt entropy-coded bytes can make laz panic ([`guard::contain`]) or
+//! recurse without bound in its GPS time decoder ([`DepthLimitedReader`]).
 
 use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 
