@@ -24,6 +24,7 @@
 //!   A dichotomous split divides the cross-section between the two forks.
 //! - Children are placed per internode by error diffusion (paper §3.2.1), in
 //!   alternate or whorled arrangement, at cumulative `rotate` azimuths.
+//! - Branches stop where they would reach the ground (pruning, §4.6).
 //! - `attraction_up` bends level ≥ 2 stems towards (or, if negative, away
 //!   from) the light, the vertical tropism of the paper's §3.2.1.
 //!
@@ -43,6 +44,9 @@ pub const MAX_NODES: usize = 500_000;
 
 /// Most internodes along one stem.
 const MAX_SEGMENTS: usize = 400;
+
+/// Branches stop where they would come closer to the ground than this, m.
+const GROUND_CLEARANCE_M: f32 = 0.3;
 
 /// Stems shorter than this are not grown (a bud, not a branch), in metres.
 const MIN_STEM_M: f32 = 0.05;
@@ -360,6 +364,11 @@ impl Grower<'_> {
             }
             right = orthonormal(right, dir);
             let position = self.skeleton.position(node) + dir * seg_len;
+            if stem.level > 0 && position.z < GROUND_CLEARANCE_M {
+                // Pruned by the ground, as Weber & Penn's pruning envelope
+                // (§4.6) would: a branch does not grow into the soil.
+                break;
+            }
             let radius = self
                 .radius_at(&stem, offset)
                 .min(self.skeleton.radius(node));
