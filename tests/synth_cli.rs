@@ -3,7 +3,10 @@
 use std::process::Command;
 
 use glam::DVec3;
-use silva::synth::{Species, TreeParams, generate};
+use silva::cloud::{ReadOptions, read_path};
+use silva::synth::{
+    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+};
 use silva::{Anchor, Skeleton};
 
 fn silva() -> Command {
@@ -73,11 +76,53 @@ fn als_summary_reports_the_requested_density() {
 }
 
 #[test]
+fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
+    let dir = tempfile::tempdir().unwrap();
+    let anchor = Anchor::at(DVec3::new(85_000.0, 446_000.0, 0.0));
+    let tree = generate(&TreeParams::preset(Species::Birch), 3, anchor);
+    for (scan, file) in [
+        ("als", "clip.laz"),
+        ("als", "clip.las"),
+        ("tls", "tree.ply"),
+        ("tls", "tree.xyz"),
+    ] {
+        let path = dir.path().join(file);
+        let out = silva()
+            .args(["synth", "--species", "birch", "--seed", "3", "--scan", scan])
+            .args(["--anchor", "85000,446000,0", "-o"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let expected = if scan == "als" {
+            simulate_als(&tree, &AlsOptions::default(), 3)
+        } else {
+            simulate_tls(&tree, &TlsOptions::default(), 3)
+        };
+        let (back, _) = read_path(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(back.len(), expected.len(), "{file}");
+        for i in (0..back.len()).step_by(97) {
+            let d = back.absolute(i) - expected.absolute(i);
+            assert!(
+                d.abs().max_element() <= 1.0e-3,
+                "{file}: point {i} off by {d}"
+            );
+        }
+    }
+}
+
+#[test]
 fn bad_arguments_fail_with_one_line() {
     for args in [
         vec!["synth", "--species", "oak"],
         vec!["synth", "--scan", "als", "--density", "0"],
         vec!["synth", "--scan", "tls", "--noise", "NaN"],
+        vec!["synth", "--truth", "t.json", "-o", "cloud.laz"],
+        vec!["synth", "--scan", "als", "-o", "cloud.e57"],
     ] {
         let out = silva().args(&args).output().unwrap();
         assert!(!out.status.success(), "{args:?}");

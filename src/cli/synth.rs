@@ -4,7 +4,10 @@
 //! silva synth --species oak --seed 7 --scan als --density 20 -o cloud.laz --truth skeleton.json
 //! ```
 //!
-//! Prints a one-line JSON summary (tree size, points, density) on stdout.
+//! The tree and the scan are those of [`silva::synth`]; the cloud goes
+//! through [`silva::cloud::write_path`] with the anchor as its offset, so
+//! georeference and CRS coordinates survive. Prints a one-line JSON summary
+//! (tree size, points, density, time) on stdout.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -56,6 +59,10 @@ pub struct Args {
     /// Coordinate reference system of the anchor, e.g. `EPSG:28992`.
     #[arg(long)]
     crs: Option<String>,
+    /// Write the simulated cloud here; the format follows the extension
+    /// (.xyz, .txt, .ply, .las, .laz).
+    #[arg(short = 'o', long = "output")]
+    output: Option<PathBuf>,
     /// Write the true skeleton as silva skeleton JSON to this file.
     #[arg(long)]
     truth: Option<PathBuf>,
@@ -66,6 +73,20 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.truth.is_none() && args.scan.is_none() {
         bail!("nothing to do: give --truth FILE and/or --scan tls|als");
+    }
+    if let Some(path) = &args.output {
+        if args.scan.is_none() {
+            bail!(
+                "-o {} needs a scan: add --scan tls or --scan als",
+                path.display()
+            );
+        }
+        if silva::cloud::format_for_path(path).is_none() {
+            bail!(
+                "cannot choose an output format for {}: use .xyz, .txt, .ply, .las or .laz",
+                path.display()
+            );
+        }
     }
     let started = Instant::now();
     let anchor = Anchor {
@@ -81,6 +102,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .scan
         .map(|scan| simulate(&tree, scan, &args))
         .transpose()?;
+    if let (Some(path), Some(scan)) = (&args.output, &scan) {
+        silva::cloud::write_path(&scan.cloud, path)
+            .with_context(|| format!("writing the simulated cloud to {}", path.display()))?;
+    }
     let summary = summary(&tree, &args, scan.as_ref(), started);
     println!("{summary}");
     Ok(())
