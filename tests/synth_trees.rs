@@ -2,6 +2,7 @@
 //! monotonicity, ground-truth round trip, TLS surface fidelity, ALS density.
 
 use glam::{DVec3, Vec3};
+use proptest::prelude::*;
 use silva::spatial::PointIndex;
 use silva::synth::{
     AlsOptions, LevelParams, ScannerPlacement, Species, TlsOptions, TreeParams, generate,
@@ -400,4 +401,18 @@ fn species_names_parse_and_print() {
     assert_eq!(" Oak ".parse::<Species>().unwrap(), Species::Oak);
     let err = "maple".parse::<Species>().unwrap_err();
     assert!(err.to_string().contains("oak, birch, poplar, pine"));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn any_seed_gives_a_valid_tree(seed in any::<u64>(), k in 0usize..4) {
+        let t = tree(Species::ALL[k], seed);
+        prop_assert!(Skeleton::from_json(&t.to_json()).is_ok());
+        for (p, c) in t.internodes() {
+            prop_assert!(t.radius(c) <= t.radius(p));
+        }
+        prop_assert!(t.nodes().iter().all(|n| n.position.z >= 0.0));
+        prop_assert!((12.0..35.0).contains(&height_m(&t)));
+    }
 }

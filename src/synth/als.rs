@@ -113,6 +113,18 @@ impl Default for AlsOptions {
     }
 }
 
+impl AlsOptions {
+    /// Half-width of the square clip around `tree`'s trunk base, in metres:
+    /// `clip_radius_m`, or the crown radius plus 3 m, at most 1 km. The clip
+    /// area is the square of twice this.
+    pub fn clip_half_width_m(&self, tree: &Skeleton) -> f32 {
+        self.clip_radius_m
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .unwrap_or_else(|| crown_radius_m(tree) + 3.0)
+            .min(1_000.0)
+    }
+}
+
 /// What a return came from.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Target {
@@ -150,11 +162,7 @@ struct Event {
 pub fn simulate_als(tree: &Skeleton, opts: &AlsOptions, seed: u64) -> PointCloud {
     let mut rng = seeded(seed, Stream::Als);
     let mut scene = AlsScene::new(tree, opts);
-    let half = opts
-        .clip_radius_m
-        .filter(|r| r.is_finite() && *r > 0.0)
-        .unwrap_or(crown_radius_m(tree) + 3.0)
-        .min(1_000.0);
+    let half = opts.clip_half_width_m(tree);
     let density = if opts.density_pts_per_m2.is_finite() {
         opts.density_pts_per_m2.max(0.0)
     } else {

@@ -73,9 +73,9 @@ fn oak() -> TreeParams {
                 ..level(1.0, 0, 0.0, 0.5)
             },
             LevelParams {
-                down_angle_v_deg: -25.0,
+                down_angle_v_deg: -20.0,
                 curve_deg: -25.0,
-                curve_v_deg: 70.0,
+                curve_v_deg: 45.0,
                 seg_splits: 0.04,
                 split_angle_deg: 35.0,
                 ..level(0.55, 32, 55.0, 0.4)

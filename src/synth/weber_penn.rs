@@ -24,6 +24,7 @@
 //!   A dichotomous split divides the cross-section between the two forks.
 //! - Children are placed per internode by error diffusion (paper §3.2.1), in
 //!   alternate or whorled arrangement, at cumulative `rotate` azimuths.
+//! - Branches stop where they would reach the ground (pruning, §4.6).
 //! - `attraction_up` bends level ≥ 2 stems towards (or, if negative, away
 //!   from) the light, the vertical tropism of the paper's §3.2.1.
 //!
@@ -43,6 +44,9 @@ pub const MAX_NODES: usize = 500_000;
 
 /// Most internodes along one stem.
 const MAX_SEGMENTS: usize = 400;
+
+/// Branches stop where they would come closer to the ground than this, m.
+const GROUND_CLEARANCE_M: f32 = 0.3;
 
 /// Stems shorter than this are not grown (a bud, not a branch), in metres.
 const MIN_STEM_M: f32 = 0.05;
@@ -354,12 +358,13 @@ impl Grower<'_> {
             let offset = stem.start_offset_m + k as f32 * seg_len;
             let bend =
                 self.curve_at(level, stem.length_m, offset - 0.5 * seg_len, seg_len) + curve_v;
-            dir = rotate(dir, right, bend);
-            if stem.level >= 2 {
-                dir = self.tropism(dir, seg_len);
-            }
-            right = orthonormal(right, dir);
+            (dir, right) = self.turn(stem.level, dir, right, bend, seg_len);
             let position = self.skeleton.position(node) + dir * seg_len;
+            if stem.level > 0 && position.z < GROUND_CLEARANCE_M {
+                // Pruned by the ground, as Weber & Penn's pruning envelope
+                // (§4.6) would: a branch does not grow into the soil.
+                break;
+            }
             let radius = self
                 .radius_at(&stem, offset)
                 .min(self.skeleton.radius(node));
@@ -382,26 +387,16 @@ impl Grower<'_> {
             }
             split_error += level.seg_splits;
             if split_error >= 1.0 && k < segments {
-                let (kept, fork) = self.split(&stem, node, offset, dir, right);
-                pending.push(fork);
-                // The stem continues as the other fork, with half the
-                // cross-section (pipe model).
-                pending.push(Stem {
-                    start: node,
-                    dir: kept,
-                    right: orthonormal(right, kept),
-                    start_offset_m: offset,
-                    radius_scale: stem.radius_scale * std::f32::consts::FRAC_1_SQRT_2,
-                    ..stem.clone()
-                });
+                pending.extend(self.split(&stem, node, offset, dir, right));
                 break;
             }
         }
         self.sprout(&stem, sites, pending);
     }
 
-    /// A dichotomous split at `node`: returns the new direction of the
-    /// continuing stem and the other fork, which diverge by `split_angle`.
+    /// A dichotomous split at `node`: the two forks, diverging by
+    /// `split_angle`, each with half the cross-section (pipe model). The
+    /// second continues the stem.
     fn split(
         &mut self,
         stem: &Stem,
@@ -409,7 +404,7 @@ impl Grower<'_> {
         offset: f32,
         dir: Vec3,
         right: Vec3,
-    ) -> (Vec3, Stem) {
+    ) -> [Stem; 2] {
         let level = &self.params.levels[stem.level];
         let angle = spread(
             &mut self.rng,
@@ -421,15 +416,28 @@ impl Grower<'_> {
         let axis = rotate(right, dir, std::f32::consts::TAU * unit(&mut self.rng));
         let kept = rotate(dir, axis, 0.5 * angle);
         let fork_dir = rotate(dir, axis, -0.5 * angle);
-        let fork = Stem {
+        let fork = |dir: Vec3, right: Vec3| Stem {
             start: node,
-            dir: fork_dir,
-            right: orthonormal(axis, fork_dir),
+            dir,
+            right,
             start_offset_m: offset,
             radius_scale: stem.radius_scale * std::f32::consts::FRAC_1_SQRT_2,
             ..stem.clone()
         };
-        (kept, fork)
+        [
+            fork(fork_dir, orthonormal(axis, fork_dir)),
+            fork(kept, orthonormal(right, kept)),
+        ]
+    }
+
+    /// The frame after one internode: bent by `bend` about the stem's own
+    /// lateral axis, then by the vertical tropism on level ≥ 2 stems.
+    fn turn(&self, level: usize, dir: Vec3, right: Vec3, bend: f32, seg_len: f32) -> (Vec3, Vec3) {
+        let mut dir = rotate(dir, right, bend);
+        if level >= 2 {
+            dir = self.tropism(dir, seg_len);
+        }
+        (dir, orthonormal(right, dir))
     }
 
     /// Bend of one internode centred at `offset` along a stem: `curve` over

@@ -1,0 +1,200 @@
+//! `silva synth`: a synthetic tree, its true skeleton, and a simulated scan.
+//!
+//! ```text
+//! silva synth --species oak --seed 7 --scan als --density 20 -o cloud.laz --truth skeleton.json
+//! ```
+//!
+//! The tree and the scan are those of [`silva::synth`]; the cloud goes
+//! through [`silva::cloud::write_path`] with the anchor as its offset, so
+//! georeference and CRS coordinates survive. Prints a one-line JSON summary
+//! (tree size, points, density, time) on stdout.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use glam::DVec3;
+use silva::synth::{
+    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+};
+use silva::{Anchor, PointCloud, Skeleton};
+
+/// Which scanner to simulate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Scan {
+    /// Terrestrial: bark surfaces, millimetre noise, self-occlusion.
+    Tls,
+    /// Airborne: an AHN3-like clip with crown, few trunk and ground returns.
+    Als,
+}
+
+/// Arguments of `silva synth`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Species preset.
+    #[arg(long, value_enum, default_value_t = Species::Oak)]
+    species: Species,
+    /// Random seed; the same seed gives the same tree and scan everywhere.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Scanner to simulate; needed with `-o`.
+    #[arg(long, value_enum)]
+    scan: Option<Scan>,
+    /// Point density in points/m²: of clip area for ALS (default 20), of bark
+    /// surface for TLS (default 150).
+    #[arg(long)]
+    density: Option<f32>,
+    /// Gaussian noise standard deviation in metres (default 0.05 ALS, 0.003 TLS).
+    #[arg(long)]
+    noise: Option<f32>,
+    /// TLS: keep points that no scanner could see.
+    #[arg(long)]
+    no_occlusion: bool,
+    /// ALS: set class 2 on ground returns and 1 elsewhere (default: unclassified).
+    #[arg(long)]
+    classify_ground: bool,
+    /// Trunk base position in the CRS, as `x,y,z` in metres.
+    #[arg(long, value_parser = parse_anchor, default_value = "0,0,0")]
+    anchor: DVec3,
+    /// Coordinate reference system of the anchor, e.g. `EPSG:28992`.
+    #[arg(long)]
+    crs: Option<String>,
+    /// Write the simulated cloud here; the format follows the extension
+    /// (.xyz, .txt, .ply, .las, .laz).
+    #[arg(short = 'o', long = "output")]
+    output: Option<PathBuf>,
+    /// Write the true skeleton as silva skeleton JSON to this file.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+}
+
+/// Generates the tree, simulates the scan, writes the outputs and prints a
+/// summary.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.truth.is_none() && args.scan.is_none() {
+        bail!("nothing to do: give --truth FILE and/or --scan tls|als");
+    }
+    if let Some(path) = &args.output {
+        if args.scan.is_none() {
+            bail!(
+                "-o {} needs a scan: add --scan tls or --scan als",
+                path.display()
+            );
+        }
+        if silva::cloud::format_for_path(path).is_none() {
+            bail!(
+                "cannot choose an output format for {}: use .xyz, .txt, .ply, .las or .laz",
+                path.display()
+            );
+        }
+    }
+    let started = Instant::now();
+    let anchor = Anchor {
+        origin: args.anchor,
+        crs: args.crs.clone(),
+    };
+    let tree = generate(&TreeParams::preset(args.species), args.seed, anchor);
+    if let Some(path) = &args.truth {
+        std::fs::write(path, tree.to_json())
+            .with_context(|| format!("writing the true skeleton to {}", path.display()))?;
+    }
+    let scan = args
+        .scan
+        .map(|scan| simulate(&tree, scan, &args))
+        .transpose()?;
+    if let (Some(path), Some(scan)) = (&args.output, &scan) {
+        silva::cloud::write_path(&scan.cloud, path)
+            .with_context(|| format!("writing the simulated cloud to {}", path.display()))?;
+    }
+    let summary = summary(&tree, &args, scan.as_ref(), started);
+    println!("{summary}");
+    Ok(())
+}
+
+/// A simulated cloud with the clip area it covers (ALS only).
+struct Simulated {
+    cloud: PointCloud,
+    clip_area_m2: Option<f32>,
+}
+
+fn simulate(tree: &Skeleton, scan: Scan, args: &Args) -> anyhow::Result<Simulated> {
+    if let Some(d) = args.density {
+        if !(d.is_finite() && d > 0.0 && d <= 10_000.0) {
+            bail!("--density must be a number of points/m² in (0, 10000], got {d}");
+        }
+    }
+    if let Some(n) = args.noise {
+        if !(n.is_finite() && (0.0..=1.0).contains(&n)) {
+            bail!("--noise must be a standard deviation in metres in [0, 1], got {n}");
+        }
+    }
+    Ok(match scan {
+        Scan::Tls => {
+            let defaults = TlsOptions::default();
+            let opts = TlsOptions {
+                points_per_m2: args.density.unwrap_or(defaults.points_per_m2),
+                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
+                occlusion: !args.no_occlusion,
+                ..defaults
+            };
+            Simulated {
+                cloud: simulate_tls(tree, &opts, args.seed),
+                clip_area_m2: None,
+            }
+        }
+        Scan::Als => {
+            let defaults = AlsOptions::default();
+            let opts = AlsOptions {
+                density_pts_per_m2: args.density.unwrap_or(defaults.density_pts_per_m2),
+                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
+                classify_ground: args.classify_ground,
+                ..defaults
+            };
+            let half = opts.clip_half_width_m(tree);
+            Simulated {
+                cloud: simulate_als(tree, &opts, args.seed),
+                clip_area_m2: Some(4.0 * half * half),
+            }
+        }
+    })
+}
+
+fn summary(
+    tree: &Skeleton,
+    args: &Args,
+    scan: Option<&Simulated>,
+    started: Instant,
+) -> serde_json::Value {
+    let (_, top) = tree.bounds();
+    let mut out = serde_json::json!({
+        "species": args.species.name(),
+        "seed": args.seed,
+        "internodes": tree.internode_count(),
+        "height_m": top.z,
+        "base_radius_m": tree.radius(silva::NodeId::ROOT),
+    });
+    if let Some(s) = scan {
+        out["points"] = s.cloud.len().into();
+        if let Some(area) = s.clip_area_m2 {
+            out["clip_area_m2"] = area.into();
+            out["density_pts_per_m2"] = (s.cloud.len() as f32 / area).into();
+        }
+    }
+    out["elapsed_s"] = started.elapsed().as_secs_f64().into();
+    out
+}
+
+/// Parses `x,y,z` into a finite point.
+fn parse_anchor(text: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y, z] = parts[..] else {
+        return Err(format!("expected x,y,z, got {text:?}"));
+    };
+    let num = |s: &str| {
+        s.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{s:?} is not a finite number"))
+    };
+    Ok(DVec3::new(num(x)?, num(y)?, num(z)?))
+}

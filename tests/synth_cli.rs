@@ -1,0 +1,135 @@
+//! `silva synth` end to end: the true skeleton written, read back and compared.
+
+use std::process::Command;
+
+use glam::DVec3;
+use silva::cloud::{ReadOptions, read_path};
+use silva::synth::{
+    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+};
+use silva::{Anchor, Skeleton};
+
+fn silva() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_silva"))
+}
+
+#[test]
+fn truth_written_by_the_cli_reads_back_as_the_generated_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = dir.path().join("skeleton.json");
+    let out = silva()
+        .args([
+            "synth",
+            "--species",
+            "pine",
+            "--seed",
+            "7",
+            "--crs",
+            "EPSG:28992",
+        ])
+        .args(["--anchor", "85000,446000,0.5", "--truth"])
+        .arg(&truth)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let back = Skeleton::from_json(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    let anchor = Anchor {
+        origin: DVec3::new(85_000.0, 446_000.0, 0.5),
+        crs: Some("EPSG:28992".into()),
+    };
+    assert_eq!(
+        back,
+        generate(&TreeParams::preset(Species::Pine), 7, anchor)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["internodes"], back.internode_count());
+}
+
+#[test]
+fn als_summary_reports_the_requested_density() {
+    let out = silva()
+        .args([
+            "synth",
+            "--species",
+            "oak",
+            "--seed",
+            "7",
+            "--scan",
+            "als",
+            "--density",
+            "20",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let density = summary["density_pts_per_m2"].as_f64().unwrap();
+    assert!((16.0..=24.0).contains(&density), "{density}");
+}
+
+#[test]
+fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
+    let dir = tempfile::tempdir().unwrap();
+    let anchor = Anchor::at(DVec3::new(85_000.0, 446_000.0, 0.0));
+    let tree = generate(&TreeParams::preset(Species::Birch), 3, anchor);
+    for (scan, file) in [
+        ("als", "clip.laz"),
+        ("als", "clip.las"),
+        ("tls", "tree.ply"),
+        ("tls", "tree.xyz"),
+    ] {
+        let path = dir.path().join(file);
+        let out = silva()
+            .args(["synth", "--species", "birch", "--seed", "3", "--scan", scan])
+            .args(["--anchor", "85000,446000,0", "-o"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let expected = if scan == "als" {
+            simulate_als(&tree, &AlsOptions::default(), 3)
+        } else {
+            simulate_tls(&tree, &TlsOptions::default(), 3)
+        };
+        let (back, _) = read_path(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(back.len(), expected.len(), "{file}");
+        for i in (0..back.len()).step_by(97) {
+            let d = back.absolute(i) - expected.absolute(i);
+            assert!(
+                d.abs().max_element() <= 1.0e-3,
+                "{file}: point {i} off by {d}"
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_arguments_fail_with_one_line() {
+    for args in [
+        vec!["synth", "--species", "oak"],
+        vec!["synth", "--scan", "als", "--density", "0"],
+        vec!["synth", "--scan", "tls", "--noise", "NaN"],
+        vec!["synth", "--truth", "t.json", "-o", "cloud.laz"],
+        vec!["synth", "--scan", "als", "-o", "cloud.e57"],
+    ] {
+        let out = silva().args(&args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with("silva: ") && err.trim().lines().count() == 1,
+            "{err}"
+        );
+    }
+}
