@@ -185,8 +185,8 @@ fn crown_base_height(skeleton: &Skeleton) -> f32 {
 /// spade's Delaunay triangulation. Empty or degenerate input gives fewer
 /// than three vertices.
 pub fn convex_hull_xy(points: &[Vec3]) -> Vec<DVec2> {
-    let vertices: Vec<Point2<f64>> = points
-        .iter()
+    let vertices: Vec<Point2<f64>> = hull_candidates(points)
+        .into_iter()
         .map(|p| Point2::new(f64::from(p.x), f64::from(p.y)))
         .collect();
     let Ok(dt) = DelaunayTriangulation::<Point2<f64>>::bulk_load(vertices) else {
@@ -200,6 +200,42 @@ pub fn convex_hull_xy(points: &[Vec3]) -> Vec<DVec2> {
             let p = edge.from().position();
             DVec2::new(p.x, p.y)
         })
+        .collect()
+}
+
+/// The points that can be hull vertices, up to a sliver: in each of 256
+/// columns the lowest and highest point, in each of 256 rows the leftmost
+/// and rightmost. Large crowns then triangulate in microseconds; the hull
+/// loses at most a sliver one column wide.
+fn hull_candidates(points: &[Vec3]) -> Vec<Vec3> {
+    const BINS: usize = 256;
+    if points.len() <= 4 * BINS {
+        return points.to_vec();
+    }
+    let lo = points
+        .iter()
+        .copied()
+        .reduce(Vec3::min)
+        .unwrap_or(Vec3::ZERO);
+    let hi = points.iter().copied().fold(lo, Vec3::max);
+    let size = ((hi - lo) / BINS as f32).max(Vec3::splat(1e-6));
+    let mut cols: Vec<Option<(Vec3, Vec3)>> = vec![None; BINS];
+    let mut rows: Vec<Option<(Vec3, Vec3)>> = vec![None; BINS];
+    let bin = |v: f32, lo: f32, size: f32| (((v - lo) / size) as usize).min(BINS - 1);
+    for &p in points {
+        let c = &mut cols[bin(p.x, lo.x, size.x)];
+        *c = Some(c.map_or((p, p), |(a, b)| {
+            (if p.y < a.y { p } else { a }, if p.y > b.y { p } else { b })
+        }));
+        let r = &mut rows[bin(p.y, lo.y, size.y)];
+        *r = Some(r.map_or((p, p), |(a, b)| {
+            (if p.x < a.x { p } else { a }, if p.x > b.x { p } else { b })
+        }));
+    }
+    cols.into_iter()
+        .chain(rows)
+        .flatten()
+        .flat_map(|(a, b)| [a, b])
         .collect()
 }
 

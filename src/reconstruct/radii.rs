@@ -17,9 +17,11 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use super::dense::point_segment_distance;
 use super::metrics::Crown;
 use crate::cloud::PointCloud;
 use crate::skeleton::{NodeId, Skeleton};
+use crate::spatial::PointIndex;
 
 /// Settings of the radius stage.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,10 +35,16 @@ pub struct Params {
     /// Fewest inliers for a fitted DBH.
     pub min_trunk_points: usize,
     /// Fewest of 12 sectors (30° each) around the centre that must hold
-    /// inliers: 6 means the trunk was seen over at least half its girth.
+    /// inliers: 4 means the trunk was seen over at least a third of its
+    /// girth, as a terrestrial scan from one side sees it.
     pub min_sectors: u32,
     /// Smallest branch radius, in metres.
     pub min_radius_m: f32,
+    /// Measure radii from the points around each internode where enough
+    /// points are (dense scans); the pipe model fills in elsewhere.
+    pub measured_radii: bool,
+    /// Fewest points around an internode for a measured radius.
+    pub min_section_points: usize,
 }
 
 impl Default for Params {
@@ -46,8 +54,10 @@ impl Default for Params {
             slice_m: (1.0, 1.6),
             search_radius_m: 1.0,
             min_trunk_points: 30,
-            min_sectors: 6,
+            min_sectors: 4,
             min_radius_m: 0.002,
+            measured_radii: true,
+            min_section_points: 8,
         }
     }
 }
@@ -122,7 +132,90 @@ pub fn assign_radii(
     let trunk = fit_trunk(skeleton, &tree.points, crown, params);
     let reference = breast_height_node(skeleton, params.breast_height_m);
     pipe_model(skeleton, reference, trunk.radius_m, params.min_radius_m);
+    if params.measured_radii {
+        let measured = measured_radii(skeleton, &tree.points, params.min_section_points);
+        blend_measured(skeleton, &measured, trunk.method == DbhMethod::Fitted);
+    }
     trunk
+}
+
+/// Per node, the median distance from the points around its incoming
+/// internode to that internode's axis, where at least `min_points` points
+/// are closest to it. Points pick their internode through the nearest of
+/// axis samples taken every 5 cm.
+fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Vec<Option<f32>> {
+    let mut samples = Vec::new();
+    let mut owner = Vec::new();
+    for (p, c) in skeleton.internodes() {
+        let (a, b) = (skeleton.position(p), skeleton.position(c));
+        let steps = (a.distance(b) / 0.05).ceil().max(1.0) as usize;
+        for i in 0..=steps {
+            samples.push(a.lerp(b, i as f32 / steps as f32));
+            owner.push(c);
+        }
+    }
+    let mut found: Vec<Vec<f32>> = vec![Vec::new(); skeleton.len()];
+    let index = PointIndex::new(&samples);
+    for &q in points {
+        if let Some(n) = index.nearest(q) {
+            let c = owner[n.index];
+            let p = skeleton.parent(c).unwrap_or(NodeId::ROOT);
+            let d = point_segment_distance(q, skeleton.position(p), skeleton.position(c));
+            found[c.index()].push(d);
+        }
+    }
+    found
+        .into_iter()
+        .map(|mut d| {
+            (d.len() >= min_points.max(1)).then(|| {
+                let mid = d.len() / 2;
+                *d.select_nth_unstable_by(mid, f32::total_cmp).1
+            })
+        })
+        .collect()
+}
+
+/// Replaces pipe-model radii by measured ones where the data supports a
+/// measurement, smooths them along the tree (each node averaged with its
+/// parent and main child), and restores the rule that radii never grow
+/// towards the tips. With a fitted trunk the measured values are capped at
+/// twice the pipe model, so that leaves caught between branches cannot
+/// inflate a twig.
+fn blend_measured(skeleton: &mut Skeleton, measured: &[Option<f32>], fitted_trunk: bool) {
+    let pipe: Vec<f32> = skeleton.ids().map(|id| skeleton.radius(id)).collect();
+    let raw: Vec<f32> = skeleton
+        .ids()
+        .map(|id| match measured[id.index()] {
+            Some(m) if fitted_trunk => m.min(2.0 * pipe[id.index()]),
+            Some(m) => m,
+            None => pipe[id.index()],
+        })
+        .collect();
+    for id in skeleton.ids().skip(1) {
+        let mut sum = raw[id.index()];
+        let mut n = 1.0;
+        if let Some(p) = skeleton.parent(id).filter(|&p| p != NodeId::ROOT) {
+            sum += raw[p.index()];
+            n += 1.0;
+        }
+        if let Some(&c) = skeleton.children(id).first() {
+            sum += raw[c.index()];
+            n += 1.0;
+        }
+        skeleton.set_radius(id, sum / n);
+    }
+    let first = skeleton
+        .children(NodeId::ROOT)
+        .first()
+        .map(|c| skeleton.radius(*c));
+    if let Some(r) = first {
+        skeleton.set_radius(NodeId::ROOT, skeleton.radius(NodeId::ROOT).max(r));
+    }
+    for id in skeleton.ids().skip(1) {
+        if let Some(p) = skeleton.parent(id) {
+            skeleton.set_radius(id, skeleton.radius(id).min(skeleton.radius(p)));
+        }
+    }
 }
 
 /// Fits the trunk circle at breast height, or estimates it.
@@ -145,11 +238,32 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
     };
     // Project slice points along the trunk axis onto the breast-height plane.
     let (lo, hi) = (base_z + params.slice_m.0, base_z + params.slice_m.1);
+    // Only points whose nearest internode is on the trunk: branches that
+    // leave the trunk inside the slice would pull the circle off.
+    let orders = skeleton.branch_orders();
+    let nearby: Vec<(Vec3, Vec3, bool)> = skeleton
+        .internodes()
+        .map(|(p, c)| {
+            (
+                skeleton.position(p),
+                skeleton.position(c),
+                orders[c.index()] == 0,
+            )
+        })
+        .filter(|(a, b, _)| a.z.min(b.z) <= hi + 0.5 && a.z.max(b.z) >= lo - 0.5)
+        .collect();
+    let on_trunk = |p: Vec3| {
+        let nearest = nearby
+            .iter()
+            .map(|&(a, b, trunk)| (point_segment_distance(p, a, b), trunk))
+            .min_by(|x, y| x.0.total_cmp(&y.0));
+        nearest.is_some_and(|(d, trunk)| trunk && d <= params.search_radius_m)
+    };
     let flat: Vec<Vec2> = points
         .iter()
-        .filter(|p| p.z >= lo && p.z <= hi)
-        .map(|&p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
-        .filter(|q| q.distance(axis_point.truncate()) <= params.search_radius_m)
+        .copied()
+        .filter(|p| p.z >= lo && p.z <= hi && on_trunk(*p))
+        .map(|p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
         .collect();
     if flat.len() < params.min_trunk_points {
         return estimate(format!(

@@ -55,19 +55,44 @@ impl Graph {
 }
 
 /// Undirected edges from every point to its `k` nearest neighbours, each
-/// pair once.
-pub(super) fn knn_edges(points: &[Vec3], index: &PointIndex, k: usize) -> Vec<(u32, u32, f32)> {
-    let mut edges = Vec::with_capacity(points.len() * k);
+/// pair once, leaving out links longer than `max_edge_m` (an isolated
+/// outlier's k nearest neighbours may be metres away).
+pub(super) fn knn_edges(
+    points: &[Vec3],
+    index: &PointIndex,
+    k: usize,
+    max_edge_m: f32,
+) -> Vec<(u32, u32, f32)> {
+    let mut lists: Vec<u32> = Vec::with_capacity(points.len() * k);
+    let mut lengths: Vec<f32> = Vec::with_capacity(points.len() * k);
     for (i, &p) in points.iter().enumerate() {
+        let mut found = 0;
         for n in index.nearest_k(p, k + 1) {
-            if n.index != i {
-                let (a, b) = (i.min(n.index) as u32, i.max(n.index) as u32);
-                edges.push((a, b, n.distance_sq.sqrt()));
+            if n.index != i && found < k {
+                lists.push(n.index as u32);
+                lengths.push(n.distance_sq.sqrt());
+                found += 1;
+            }
+        }
+        // Pad short lists (tiny clouds) so that list i starts at i·k.
+        for _ in found..k {
+            lists.push(i as u32);
+            lengths.push(f32::INFINITY);
+        }
+    }
+    let list = |j: usize| &lists[j * k..(j + 1) * k];
+    let mut edges = Vec::with_capacity(points.len() * k);
+    for i in 0..points.len() {
+        for (slot, &j) in list(i).iter().enumerate() {
+            let w = lengths[i * k + slot];
+            let j = j as usize;
+            // A mutual pair is emitted once, by its smaller end.
+            let mutual_elsewhere = j < i && list(j).contains(&(i as u32));
+            if j != i && w <= max_edge_m && !mutual_elsewhere {
+                edges.push((i.min(j) as u32, i.max(j) as u32, w));
             }
         }
     }
-    edges.sort_unstable_by_key(|&(a, b, _)| (a, b));
-    edges.dedup_by_key(|&mut (a, b, _)| (a, b));
     edges
 }
 

@@ -30,6 +30,8 @@ mod graph;
 mod simplify;
 mod skeletonize;
 
+pub(crate) use simplify::point_segment_distance;
+
 /// Settings of the dense pipeline. Lengths left `None` scale with the
 /// cloud's median point spacing.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,6 +50,9 @@ pub struct Params {
     pub bin_spacings: f32,
     /// Range the automatic bin width is clamped to, in metres.
     pub bin_range_m: (f32, f32),
+    /// Graph links longer than this many median point spacings are cut, so
+    /// that isolated outliers fall away as specks.
+    pub max_edge_spacings: f32,
     /// Lateral branches shorter than this many bin widths are noise.
     pub min_branch_bins: f32,
     /// Douglas–Peucker tolerance, in bin widths.
@@ -68,8 +73,9 @@ impl Default for Params {
             max_points: 250_000,
             duplicate_m: 0.002,
             bin_width_m: None,
-            bin_spacings: 5.0,
-            bin_range_m: (0.02, 0.5),
+            bin_spacings: 0.6,
+            bin_range_m: (0.03, 0.5),
+            max_edge_spacings: 20.0,
             min_branch_bins: 3.0,
             simplify_bins: 0.3,
             min_component_points: 5,
@@ -108,9 +114,14 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     }
     require_points(points.len())?;
     let index = PointIndex::new(&points);
-    let knn = graph::knn_edges(&points, &index, params.neighbours);
+    let spacing = sampled_spacing(&points, &index);
+    let knn = graph::knn_edges(
+        &points,
+        &index,
+        params.neighbours,
+        params.max_edge_spacings * spacing.max(params.duplicate_m),
+    );
     drop(index);
-    let spacing = median_spacing(points.len(), &knn);
     let bin_m = params.bin_width_m.unwrap_or_else(|| {
         (params.bin_spacings * spacing).clamp(params.bin_range_m.0, params.bin_range_m.1)
     });
@@ -192,14 +203,15 @@ fn without_ground(cloud: &PointCloud, notes: &mut Vec<String>) -> Vec<Vec3> {
     kept
 }
 
-/// Median distance from a point to its nearest neighbour, from the graph.
-fn median_spacing(n: usize, edges: &[(u32, u32, f32)]) -> f32 {
-    let mut nearest = vec![f32::INFINITY; n];
-    for &(a, b, w) in edges {
-        nearest[a as usize] = nearest[a as usize].min(w);
-        nearest[b as usize] = nearest[b as usize].min(w);
-    }
-    nearest.retain(|d| d.is_finite());
+/// Median distance from a point to its nearest neighbour, over up to 2,000
+/// evenly picked points.
+fn sampled_spacing(points: &[Vec3], index: &PointIndex) -> f32 {
+    let step = (points.len() / 2000).max(1);
+    let mut nearest: Vec<f32> = points
+        .iter()
+        .step_by(step)
+        .filter_map(|&p| index.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
+        .collect();
     if nearest.is_empty() {
         return 0.0;
     }

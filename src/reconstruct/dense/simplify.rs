@@ -158,7 +158,7 @@ fn mark_douglas_peucker(
 }
 
 /// Distance from `p` to the segment `a`–`b`.
-fn point_segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+pub(crate) fn point_segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
     let ab = b - a;
     let len2 = ab.length_squared();
     let t = if len2 > 0.0 {
