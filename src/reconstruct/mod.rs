@@ -85,7 +85,7 @@ pub struct AutoThresholds {
 impl Default for AutoThresholds {
     fn default() -> Self {
         Self {
-            min_density_pts_per_m2: 300.0,
+            min_density_pts_per_m2: 100.0,
             min_trunk_coverage: 0.5,
         }
     }

@@ -3,7 +3,11 @@
 //! multi-temporal-tree-growth §3.2.1).
 //!
 //! Steps, each in its own file:
-//! 1. [`clean`]: near-duplicate removal, voxel thinning of huge clouds;
+//! 1. clean-up with [`crate::cloud::clean::voxel_downsample`]: near-duplicate
+//!    removal (more than `k` copies of a point would form an isolated clique
+//!    in the graph) and, for huge clouds, voxel thinning to at most
+//!    [`Params::max_points`], which bounds the graph's memory (about `2·k`
+//!    edges per point);
 //! 2. [`graph`]: a k-nearest-neighbour graph (in place of AdTree's 3D
 //!    Delaunay graph), made connected by bridging components at their
 //!    closest pairs, and Dijkstra's shortest-path tree from the trunk base
@@ -21,11 +25,11 @@
 use glam::Vec3;
 
 use super::ReconstructError;
+use crate::cloud::clean::voxel_downsample;
 use crate::cloud::{CLASS_GROUND, PointCloud};
 use crate::skeleton::{Anchor, Skeleton};
 use crate::spatial::PointIndex;
 
-mod clean;
 mod graph;
 mod simplify;
 mod skeletonize;
@@ -103,7 +107,7 @@ pub struct DenseOutput {
 pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, ReconstructError> {
     let mut notes = Vec::new();
     let points = without_ground(cloud, &mut notes);
-    let (points, thinned) = clean::thin(&points, params.duplicate_m, params.max_points);
+    let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
     if let Some(voxel) = thinned {
         notes.push(format!(
             "thinned {} points to {} on a {:.1} cm voxel grid",
@@ -170,6 +174,23 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         notes,
         bin_width_m: bin_m,
     })
+}
+
+/// Removes near-duplicates (points within one `duplicate_m` voxel), then
+/// thins on coarser voxels until at most `max_points` remain. Returns the
+/// points and, when thinning beyond de-duplication was needed, the voxel.
+fn thin(points: Vec<Vec3>, duplicate_m: f32, max_points: usize) -> (Vec<Vec3>, Option<f32>) {
+    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+    let mut out = voxel_downsample(&cloud, duplicate_m);
+    let mut voxel = duplicate_m;
+    let mut thinned = None;
+    while out.len() > max_points.max(1) {
+        // Tree surfaces are two-dimensional: the count falls with voxel².
+        voxel *= ((out.len() as f32 / max_points.max(1) as f32).sqrt() * 1.05).max(1.1);
+        out = voxel_downsample(&cloud, voxel);
+        thinned = Some(voxel);
+    }
+    (out.points, thinned)
 }
 
 fn require_points(found: usize) -> Result<(), ReconstructError> {
