@@ -285,15 +285,15 @@ fn symmetric_eigenvalues(mut a: [[f64; 3]; 3]) -> [f64; 3] {
             let cs = 1.0 / (t * t + 1.0).sqrt();
             let sn = t * cs;
             // Apply the rotation J^T A J on rows/columns p and q.
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = cs * akp - sn * akq;
-                a[k][q] = sn * akp + cs * akq;
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = cs * akp - sn * akq;
+                row[q] = sn * akp + cs * akq;
             }
+            let (row_p, row_q) = (a[p], a[q]);
             for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = cs * apk - sn * aqk;
-                a[q][k] = sn * apk + cs * aqk;
+                a[p][k] = cs * row_p[k] - sn * row_q[k];
+                a[q][k] = sn * row_p[k] + cs * row_q[k];
             }
         }
     }

@@ -147,10 +147,10 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         / sources.len() as f32;
     let root = base_xy.extend(base_z);
     let g = graph::Graph::from_edges(points.len(), &edges);
-    let (dist, pred) = graph::shortest_path_tree(&g, &sources);
-    drop(g);
-    let sections = skeletonize::cross_sections(&points, &edges, &dist, &pred, bin_m, root);
     drop(edges);
+    let (dist, pred) = graph::shortest_path_tree(&g, &sources);
+    let sections = skeletonize::cross_sections(&points, &g, &dist, &pred, bin_m, root);
+    drop(g);
 
     // Express everything relative to the trunk base: the anchor carries the
     // absolute position in f64, so the georeference stays exact.
@@ -159,7 +159,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     for node in &mut nodes {
         node.position -= root;
     }
-    let nodes = simplify::merge_close_siblings(nodes, sections.counts, bin_m);
+    let nodes = simplify::merge_close_siblings(nodes, sections.counts, &sections.spread_m, bin_m);
     let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
         .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
     let skeleton = simplify::prune_short_branches(&skeleton, params.min_branch_bins * bin_m);
@@ -240,6 +240,9 @@ fn sampled_spacing(points: &[Vec3], index: &PointIndex) -> f32 {
     *nearest.select_nth_unstable_by(mid, f32::total_cmp).1
 }
 
+/// An undirected graph edge: two point indices and the length in metres.
+type Edge = (u32, u32, f32);
+
 /// Makes the graph connected: drops isolated specks, bridges the remaining
 /// components to the largest one at their closest pairs, and rejects or
 /// drops parts that lie too far away. Returns the kept points and edges.
@@ -249,7 +252,7 @@ fn connect(
     bin_m: f32,
     params: &Params,
     notes: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, Vec<(u32, u32, f32)>), ReconstructError> {
+) -> Result<(Vec<Vec3>, Vec<Edge>), ReconstructError> {
     let (labels, sizes) = graph::components(points.len(), &knn);
     let specks = sizes.iter().position(|&s| s < params.min_component_points);
     let kept_components = specks.unwrap_or(sizes.len()).max(1);

@@ -7,13 +7,15 @@ use glam::Vec3;
 
 use crate::skeleton::{Node, NodeId, Skeleton};
 
-/// Merges children of one node that lie within `merge_m` of each other: two
-/// cross-sections of the same branch that sampling gaps split apart. The
+/// Merges children of one node that lie within `merge_m` of each other, or
+/// within the spread of their parent's cross-section: arcs of one thick
+/// stem's cross-section that the binning split apart. The
 /// merged node sits at the point-weighted mean, and the grandchildren become
 /// siblings, so parallel duplicate chains zip together from the fork up.
 pub(super) fn merge_close_siblings(
     mut nodes: Vec<Node>,
     mut counts: Vec<u32>,
+    spread_m: &[f32],
     merge_m: f32,
 ) -> Vec<Node> {
     let n = nodes.len();
@@ -25,6 +27,7 @@ pub(super) fn merge_close_siblings(
     }
     let mut alive = vec![true; n];
     for v in 0..n {
+        let merge_m = merge_m.max(spread_m[v]);
         'again: loop {
             let kids = &children[v];
             for (x, &a) in kids.iter().enumerate() {
@@ -74,7 +77,8 @@ fn compact(nodes: Vec<Node>, alive: &[bool]) -> Vec<Node> {
 }
 
 /// Removes lateral subtrees whose total length (including the internode
-/// into them) is below `min_branch_m`: the noisy stubs that the binning
+/// into them) is below `min_branch_m` or below the parent's diameter (its
+/// `radius_m` holds the cross-section's spread here): the noisy stubs that the binning
 /// produces where a cross-section splits for one bin. The heaviest child of
 /// each fork always stays, so branches keep their full length.
 pub(super) fn prune_short_branches(skeleton: &Skeleton, min_branch_m: f32) -> Skeleton {
@@ -96,8 +100,10 @@ pub(super) fn prune_short_branches(skeleton: &Skeleton, min_branch_m: f32) -> Sk
             .iter()
             .copied()
             .max_by(|&a, &b| weight(a).total_cmp(&weight(b)));
+        // Stubs no longer than the parent stem is thick are bark noise.
+        let min_m = min_branch_m.max(2.0 * skeleton.radius(v));
         for &c in kids {
-            if Some(c) != heaviest && weight(c) < min_branch_m {
+            if Some(c) != heaviest && weight(c) < min_m {
                 keep[c.index()] = false;
             }
         }
@@ -191,7 +197,7 @@ mod tests {
             node([0.0, 0.0, 2.0], Some(1)),
             node([0.02, 0.0, 2.0], Some(2)),
         ];
-        let merged = merge_close_siblings(nodes, vec![1; 5], 0.05);
+        let merged = merge_close_siblings(nodes, vec![1; 5], &[0.0; 5], 0.05);
         assert_eq!(merged.len(), 3);
         assert!((merged[1].position.x - 0.01).abs() < 1e-6);
         assert_eq!(merged[2].parent, Some(NodeId::from_index(1)));

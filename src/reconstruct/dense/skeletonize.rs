@@ -13,7 +13,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::graph::UnionFind;
+use super::graph::{Graph, UnionFind};
 use crate::skeleton::{Node, NodeId};
 
 /// Skeleton nodes (relative to the points' frame) and the number of points
@@ -21,13 +21,15 @@ use crate::skeleton::{Node, NodeId};
 pub(super) struct Sections {
     pub(super) nodes: Vec<Node>,
     pub(super) counts: Vec<u32>,
+    /// RMS distance of each section's points to its centroid, in metres.
+    pub(super) spread_m: Vec<f32>,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
-/// shortest-path tree over `edges`; every point must be reachable.
+/// shortest-path tree over `graph`; every point must be reachable.
 pub(super) fn cross_sections(
     points: &[Vec3],
-    edges: &[(u32, u32, f32)],
+    graph: &Graph,
     dist: &[f32],
     pred: &[u32],
     bin_m: f32,
@@ -43,21 +45,39 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    for &(a, b, _) in edges {
-        if bin[a as usize] == bin[b as usize] {
-            uf.union(a, b);
+    // Points of one bin join when linked directly or through a common
+    // neighbour: thin bins on a sparsely sampled stem would otherwise break
+    // into arcs whose centroids sit on the bark.
+    let mut around: Vec<(u32, u32)> = Vec::new();
+    for v in 0..n {
+        around.clear();
+        around.push((bin[v], v as u32));
+        around.extend(
+            graph
+                .neighbours(v)
+                .iter()
+                .map(|&(w, _)| (bin[w as usize], w)),
+        );
+        around.sort_unstable();
+        for pair in around.windows(2) {
+            if pair[0].0 == pair[1].0 {
+                uf.union(pair[0].1, pair[1].1);
+            }
         }
     }
     // Per cross-section: its closest point to the base, centroid, count.
     let mut lowest = vec![u32::MAX; n];
     let mut sum = vec![DVec3::ZERO; n];
+    let mut sum_sq = vec![0f64; n];
     let mut count = vec![0u32; n];
     for i in 0..n as u32 {
         let r = uf.find(i) as usize;
         if lowest[r] == u32::MAX || dist[i as usize] < dist[lowest[r] as usize] {
             lowest[r] = i;
         }
-        sum[r] += points[i as usize].as_dvec3();
+        let p = points[i as usize].as_dvec3();
+        sum[r] += p;
+        sum_sq[r] += p.length_squared();
         count[r] += 1;
     }
     let mut sections: Vec<usize> = (0..n).filter(|&r| count[r] > 0).collect();
@@ -70,6 +90,7 @@ pub(super) fn cross_sections(
     let mut node_of = vec![u32::MAX; n];
     let mut nodes = Vec::with_capacity(sections.len());
     let mut counts = Vec::with_capacity(sections.len());
+    let mut spread_m = Vec::with_capacity(sections.len());
     for (id, &r) in sections.iter().enumerate() {
         node_of[r] = id as u32;
         let low = lowest[r] as usize;
@@ -92,14 +113,24 @@ pub(super) fn cross_sections(
             let centroid = (sum[r] / f64::from(count[r])).as_vec3();
             (centroid, Some(NodeId::from_index(parent_node as usize)))
         };
+        let c = f64::from(count[r]);
+        let mean = sum[r] / c;
+        let spread = (sum_sq[r] / c - mean.length_squared()).max(0.0).sqrt() as f32;
+        // The spread stands in for the radius until the radius stage runs;
+        // pruning uses it to tell bark noise from branches.
         nodes.push(Node {
             position,
-            radius_m: 0.0,
+            radius_m: spread,
             parent,
         });
         counts.push(count[r]);
+        spread_m.push(spread);
     }
-    Sections { nodes, counts }
+    Sections {
+        nodes,
+        counts,
+        spread_m,
+    }
 }
 
 #[cfg(test)]
@@ -126,7 +157,7 @@ mod tests {
         }
         let g = Graph::from_edges(pts.len(), &edges);
         let (dist, pred) = shortest_path_tree(&g, &(0..8).collect::<Vec<_>>());
-        let s = cross_sections(&pts, &edges, &dist, &pred, 0.08, Vec3::new(1.0, 0.0, 0.0));
+        let s = cross_sections(&pts, &g, &dist, &pred, 0.08, Vec3::new(1.0, 0.0, 0.0));
         assert_eq!(s.nodes.len(), 2);
         assert!(s.nodes[1].position.distance(Vec3::new(1.0, 0.0, 0.1)) < 1e-4);
         assert_eq!(s.nodes[1].parent, Some(NodeId::ROOT));
