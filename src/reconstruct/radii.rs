@@ -332,22 +332,30 @@ pub fn allometric_dbh_m(height_m: f32, crown_diameter_m: f32) -> f32 {
 }
 
 /// The point and direction of the trunk (the root's main-extension chain) at
-/// `height_m` above the base, or `None` when the trunk is lower.
+/// `height_m` above the base, or `None` when the trunk is lower. The
+/// direction spans ±0.3 m so that the centring noise of single internodes
+/// does not tilt it.
 fn trunk_axis_at(skeleton: &Skeleton, height_m: f32) -> Option<(Vec3, Vec3)> {
     let base_z = skeleton.position(NodeId::ROOT).z;
+    let mut chain = vec![skeleton.position(NodeId::ROOT)];
     let mut node = NodeId::ROOT;
     while let Some(&next) = skeleton.children(node).first() {
-        let (a, b) = (skeleton.position(node), skeleton.position(next));
-        if b.z - base_z >= height_m && b.z > a.z {
-            let t = (base_z + height_m - a.z) / (b.z - a.z);
-            let dir = (b - a).normalize();
-            // A trunk leaning more than 45° is no trunk to fit.
-            return (dir.z > std::f32::consts::FRAC_1_SQRT_2)
-                .then(|| (a.lerp(b, t.clamp(0.0, 1.0)), dir));
-        }
+        chain.push(skeleton.position(next));
         node = next;
     }
-    None
+    let at = |h: f32| -> Option<Vec3> {
+        let z = base_z + h;
+        chain.windows(2).find_map(|w| {
+            let (a, b) = (w[0], w[1]);
+            (a.z <= z && b.z >= z && b.z > a.z).then(|| a.lerp(b, (z - a.z) / (b.z - a.z)))
+        })
+    };
+    let point = at(height_m)?;
+    let low = at((height_m - 0.3).max(0.0)).unwrap_or(point);
+    let high = at(height_m + 0.3).unwrap_or(point);
+    let dir = (high - low).normalize_or(Vec3::Z);
+    // A trunk leaning more than 45° is no trunk to fit.
+    (dir.z > std::f32::consts::FRAC_1_SQRT_2).then_some((point, dir))
 }
 
 /// The trunk node at or just above breast height (the root for short trees).

@@ -59,6 +59,14 @@ pub struct Params {
     pub max_edge_spacings: f32,
     /// Lateral branches shorter than this many bin widths are noise.
     pub min_branch_bins: f32,
+    /// Join cross-sections of one bin whose extents overlap (arcs of a
+    /// thick stem that ragged distance fronts split).
+    pub merge_overlapping_arcs: bool,
+    /// Lateral subtrees that stay within this many cross-section spreads of
+    /// the stem they leave are bark patches, not branches (0 keeps them).
+    pub stem_stub_spreads: f32,
+    /// Rounds of smoothing along chains before simplification.
+    pub smoothing_rounds: usize,
     /// Douglas–Peucker tolerance, in bin widths.
     pub simplify_bins: f32,
     /// Components with fewer points are dropped as isolated noise.
@@ -81,6 +89,9 @@ impl Default for Params {
             bin_range_m: (0.03, 0.5),
             max_edge_spacings: 20.0,
             min_branch_bins: 3.0,
+            merge_overlapping_arcs: true,
+            stem_stub_spreads: 1.5,
+            smoothing_rounds: 1,
             simplify_bins: 0.3,
             min_component_points: 5,
             max_gap_m: 1.0,
@@ -149,7 +160,15 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     let g = graph::Graph::from_edges(points.len(), &edges);
     drop(edges);
     let (dist, pred) = graph::shortest_path_tree(&g, &sources);
-    let sections = skeletonize::cross_sections(&points, &g, &dist, &pred, bin_m, root);
+    let sections = skeletonize::cross_sections(
+        &points,
+        &g,
+        &dist,
+        &pred,
+        bin_m,
+        root,
+        params.merge_overlapping_arcs,
+    );
     drop(g);
 
     // Express everything relative to the trunk base: the anchor carries the
@@ -159,10 +178,15 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     for node in &mut nodes {
         node.position -= root;
     }
-    let nodes = simplify::merge_close_siblings(nodes, sections.counts, &sections.spread_m, bin_m);
+    let nodes = simplify::merge_close_siblings(nodes, sections.counts, bin_m);
     let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
         .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
-    let skeleton = simplify::prune_short_branches(&skeleton, params.min_branch_bins * bin_m);
+    let mut skeleton = simplify::prune_short_branches(
+        &skeleton,
+        params.min_branch_bins * bin_m,
+        params.stem_stub_spreads,
+    );
+    simplify::smooth_chains(&mut skeleton, params.smoothing_rounds);
     let mut skeleton = simplify::douglas_peucker(&skeleton, params.simplify_bins * bin_m);
     skeleton.order_main_extension_first();
     let mut skeleton = skeleton.canonical();

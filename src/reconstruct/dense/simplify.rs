@@ -7,15 +7,13 @@ use glam::Vec3;
 
 use crate::skeleton::{Node, NodeId, Skeleton};
 
-/// Merges children of one node that lie within `merge_m` of each other, or
-/// within the spread of their parent's cross-section: arcs of one thick
-/// stem's cross-section that the binning split apart. The
+/// Merges children of one node that lie within `merge_m` of each other: two
+/// cross-sections of the same branch that sampling gaps split apart. The
 /// merged node sits at the point-weighted mean, and the grandchildren become
 /// siblings, so parallel duplicate chains zip together from the fork up.
 pub(super) fn merge_close_siblings(
     mut nodes: Vec<Node>,
     mut counts: Vec<u32>,
-    spread_m: &[f32],
     merge_m: f32,
 ) -> Vec<Node> {
     let n = nodes.len();
@@ -27,7 +25,6 @@ pub(super) fn merge_close_siblings(
     }
     let mut alive = vec![true; n];
     for v in 0..n {
-        let merge_m = merge_m.max(spread_m[v]);
         'again: loop {
             let kids = &children[v];
             for (x, &a) in kids.iter().enumerate() {
@@ -76,12 +73,15 @@ fn compact(nodes: Vec<Node>, alive: &[bool]) -> Vec<Node> {
         .collect()
 }
 
-/// Removes lateral subtrees whose total length (including the internode
-/// into them) is below `min_branch_m` or below the parent's diameter (its
-/// `radius_m` holds the cross-section's spread here): the noisy stubs that the binning
-/// produces where a cross-section splits for one bin. The heaviest child of
-/// each fork always stays, so branches keep their full length.
-pub(super) fn prune_short_branches(skeleton: &Skeleton, min_branch_m: f32) -> Skeleton {
+/// Removes lateral subtrees that are noise: shorter than `min_branch_m`
+/// (including the internode into them), or never leaving the parent stem
+/// (see [`inside_stem`]). The heaviest child of each fork always stays, so
+/// branches keep their full length.
+pub(super) fn prune_short_branches(
+    skeleton: &Skeleton,
+    min_branch_m: f32,
+    stem_spreads: f32,
+) -> Skeleton {
     let sub = skeleton.subtree_lengths();
     let weight = |c: NodeId| sub[c.index()] + skeleton.internode_length(c);
     let mut keep = vec![true; skeleton.len()];
@@ -100,10 +100,11 @@ pub(super) fn prune_short_branches(skeleton: &Skeleton, min_branch_m: f32) -> Sk
             .iter()
             .copied()
             .max_by(|&a, &b| weight(a).total_cmp(&weight(b)));
-        // Stubs no longer than the parent stem is thick are bark noise.
-        let min_m = min_branch_m.max(2.0 * skeleton.radius(v));
+        let Some(main) = heaviest else { continue };
         for &c in kids {
-            if Some(c) != heaviest && weight(c) < min_m {
+            if c != main
+                && (weight(c) < min_branch_m || inside_stem(skeleton, v, main, c, stem_spreads))
+            {
                 keep[c.index()] = false;
             }
         }
@@ -111,9 +112,59 @@ pub(super) fn prune_short_branches(skeleton: &Skeleton, min_branch_m: f32) -> Sk
     skeleton.retain(&keep)
 }
 
+/// True when the lateral subtree at `lateral` stays within `spreads` cross-section
+/// spreads of the stem axis through `fork` towards `main`: a chain of bark
+/// patches that ragged distance fronts split off the stem, not a branch.
+/// (Until the radius stage runs, `radius_m` holds the sections' spread.)
+fn inside_stem(
+    skeleton: &Skeleton,
+    fork: NodeId,
+    main: NodeId,
+    lateral: NodeId,
+    spreads: f32,
+) -> bool {
+    let origin = skeleton.position(fork);
+    let axis = (skeleton.position(main) - origin).normalize_or(Vec3::Z);
+    let limit = spreads * skeleton.radius(fork);
+    let mut stack = vec![lateral];
+    while let Some(id) = stack.pop() {
+        let d = skeleton.position(id) - origin;
+        if (d - axis * d.dot(axis)).length() > limit {
+            return false;
+        }
+        stack.extend_from_slice(skeleton.children(id));
+    }
+    true
+}
+
+/// Smooths node positions along chains (each interior node moves towards
+/// the mean of its parent and its single child, `rounds` times): centroids
+/// of partial cross-sections jitter around the true axis, and the jitter
+/// would otherwise add length. Forks, tips and the root stay in place.
+pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize) {
+    for _ in 0..rounds {
+        let moved: Vec<(NodeId, Vec3)> = skeleton
+            .ids()
+            .skip(1)
+            .filter_map(|id| {
+                let [child] = skeleton.children(id) else {
+                    return None;
+                };
+                let parent = skeleton.parent(id)?;
+                let mean = 0.5 * (skeleton.position(parent) + skeleton.position(*child));
+                Some((id, 0.5 * (skeleton.position(id) + mean)))
+            })
+            .collect();
+        for (id, p) in moved {
+            skeleton.set_position(id, p);
+        }
+    }
+}
+
 /// Douglas–Peucker along every chain (the run of single-child nodes between
-/// forks and tips): interior nodes closer than `tolerance_m` to the
-/// simplified line are removed.
+/// forks and tips): interior nodes closer than `tolerance_m`, or a quarter
+/// of the chain's cross-section spread (held in `radius_m` before the radius
+/// stage), to the simplified line are removed.
 pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32) -> Skeleton {
     let mut keep = vec![true; skeleton.len()];
     for v in skeleton.ids() {
@@ -129,6 +180,9 @@ pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32) -> Skeleton
             }
             let pts: Vec<Vec3> = chain.iter().map(|&id| skeleton.position(id)).collect();
             let mut chain_keep = vec![false; pts.len()];
+            // Thick stems jitter more (their centroids come from partial
+            // rings), so the tolerance grows with the section spread.
+            let tolerance_m = tolerance_m.max(0.25 * skeleton.radius(c));
             mark_douglas_peucker(&pts, 0, pts.len() - 1, tolerance_m, &mut chain_keep);
             for (&id, &k) in chain.iter().zip(&chain_keep).skip(1) {
                 keep[id.index()] = k || skeleton.children(id).len() != 1;
@@ -197,7 +251,7 @@ mod tests {
             node([0.0, 0.0, 2.0], Some(1)),
             node([0.02, 0.0, 2.0], Some(2)),
         ];
-        let merged = merge_close_siblings(nodes, vec![1; 5], &[0.0; 5], 0.05);
+        let merged = merge_close_siblings(nodes, vec![1; 5], 0.05);
         assert_eq!(merged.len(), 3);
         assert!((merged[1].position.x - 0.01).abs() < 1e-6);
         assert_eq!(merged[2].parent, Some(NodeId::from_index(1)));
@@ -213,7 +267,7 @@ mod tests {
             node([0.05, 0.0, 1.05], Some(1)), // a 7 cm stub
         ];
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
-        let pruned = prune_short_branches(&s, 0.2);
+        let pruned = prune_short_branches(&s, 0.2, 1.5);
         assert_eq!(pruned.len(), 4);
         let straight = douglas_peucker(&pruned, 0.01);
         assert_eq!(straight.len(), 2);

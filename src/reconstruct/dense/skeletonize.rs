@@ -21,8 +21,6 @@ use crate::skeleton::{Node, NodeId};
 pub(super) struct Sections {
     pub(super) nodes: Vec<Node>,
     pub(super) counts: Vec<u32>,
-    /// RMS distance of each section's points to its centroid, in metres.
-    pub(super) spread_m: Vec<f32>,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -34,6 +32,7 @@ pub(super) fn cross_sections(
     pred: &[u32],
     bin_m: f32,
     root: Vec3,
+    merge_overlapping_arcs: bool,
 ) -> Sections {
     let n = points.len();
     let bin: Vec<u32> = dist.iter().map(|&d| (d / bin_m) as u32).collect();
@@ -45,41 +44,23 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    // Points of one bin join when linked directly or through a common
-    // neighbour: thin bins on a sparsely sampled stem would otherwise break
-    // into arcs whose centroids sit on the bark.
-    let mut around: Vec<(u32, u32)> = Vec::new();
     for v in 0..n {
-        around.clear();
-        around.push((bin[v], v as u32));
-        around.extend(
-            graph
-                .neighbours(v)
-                .iter()
-                .map(|&(w, _)| (bin[w as usize], w)),
-        );
-        around.sort_unstable();
-        for pair in around.windows(2) {
-            if pair[0].0 == pair[1].0 {
-                uf.union(pair[0].1, pair[1].1);
+        for &(w, _) in graph.neighbours(v) {
+            if bin[v] == bin[w as usize] {
+                uf.union(v as u32, w);
             }
         }
     }
-    // Per cross-section: its closest point to the base, centroid, count.
-    let mut lowest = vec![u32::MAX; n];
-    let mut sum = vec![DVec3::ZERO; n];
-    let mut sum_sq = vec![0f64; n];
-    let mut count = vec![0u32; n];
-    for i in 0..n as u32 {
-        let r = uf.find(i) as usize;
-        if lowest[r] == u32::MAX || dist[i as usize] < dist[lowest[r] as usize] {
-            lowest[r] = i;
-        }
-        let p = points[i as usize].as_dvec3();
-        sum[r] += p;
-        sum_sq[r] += p.length_squared();
-        count[r] += 1;
+    if merge_overlapping_arcs {
+        let stats = Stats::gather(points, dist, &mut uf);
+        merge_overlapping(points, &bin, &stats, &mut uf);
     }
+    let Stats {
+        lowest,
+        sum,
+        sum_sq,
+        count,
+    } = Stats::gather(points, dist, &mut uf);
     let mut sections: Vec<usize> = (0..n).filter(|&r| count[r] > 0).collect();
     sections.sort_by(|&a, &b| {
         let (la, lb) = (lowest[a] as usize, lowest[b] as usize);
@@ -90,7 +71,6 @@ pub(super) fn cross_sections(
     let mut node_of = vec![u32::MAX; n];
     let mut nodes = Vec::with_capacity(sections.len());
     let mut counts = Vec::with_capacity(sections.len());
-    let mut spread_m = Vec::with_capacity(sections.len());
     for (id, &r) in sections.iter().enumerate() {
         node_of[r] = id as u32;
         let low = lowest[r] as usize;
@@ -124,12 +104,81 @@ pub(super) fn cross_sections(
             parent,
         });
         counts.push(count[r]);
-        spread_m.push(spread);
     }
-    Sections {
-        nodes,
-        counts,
-        spread_m,
+    Sections { nodes, counts }
+}
+
+/// Per cross-section (indexed by union-find root): the point closest to the
+/// base, the coordinate sums and the point count.
+struct Stats {
+    lowest: Vec<u32>,
+    sum: Vec<DVec3>,
+    sum_sq: Vec<f64>,
+    count: Vec<u32>,
+}
+
+impl Stats {
+    fn gather(points: &[Vec3], dist: &[f32], uf: &mut UnionFind) -> Stats {
+        let n = points.len();
+        let mut st = Stats {
+            lowest: vec![u32::MAX; n],
+            sum: vec![DVec3::ZERO; n],
+            sum_sq: vec![0f64; n],
+            count: vec![0u32; n],
+        };
+        for i in 0..n as u32 {
+            let r = uf.find(i) as usize;
+            let low = st.lowest[r];
+            if low == u32::MAX || dist[i as usize] < dist[low as usize] {
+                st.lowest[r] = i;
+            }
+            let p = points[i as usize].as_dvec3();
+            st.sum[r] += p;
+            st.sum_sq[r] += p.length_squared();
+            st.count[r] += 1;
+        }
+        st
+    }
+
+    fn centroid(&self, r: usize) -> Vec3 {
+        (self.sum[r] / f64::from(self.count[r].max(1))).as_vec3()
+    }
+}
+
+/// Joins sections of one bin whose extents (largest distance of a point to
+/// the centroid) overlap: on a thick stem the distance fronts are ragged,
+/// so one cross-section of the stem falls apart into arcs, and the arcs'
+/// extents overlap, while separate twigs keep apart.
+fn merge_overlapping(points: &[Vec3], bin: &[u32], stats: &Stats, uf: &mut UnionFind) {
+    let n = points.len();
+    let mut extent = vec![0f32; n];
+    for i in 0..n as u32 {
+        let r = uf.find(i) as usize;
+        let d = points[i as usize].distance(stats.centroid(r));
+        extent[r] = extent[r].max(d);
+    }
+    // Sections by bin, then by centroid x for a sweep.
+    let mut sections: Vec<(u32, f32, u32)> = (0..n)
+        .filter(|&r| stats.count[r] > 0 && bin[stats.lowest[r] as usize] > 0)
+        .map(|r| (bin[stats.lowest[r] as usize], stats.centroid(r).x, r as u32))
+        .collect();
+    sections.sort_by(|a, b| {
+        (a.0, a.1)
+            .partial_cmp(&(b.0, b.1))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let widest = extent.iter().copied().fold(0.0, f32::max);
+    for (i, &(bin_a, xa, a)) in sections.iter().enumerate() {
+        let (ca, ea) = (stats.centroid(a as usize), extent[a as usize]);
+        for &(bin_b, xb, b) in &sections[i + 1..] {
+            if bin_b != bin_a || xb - xa > ea + widest {
+                break;
+            }
+            let (cb, eb) = (stats.centroid(b as usize), extent[b as usize]);
+            if ca.distance(cb) < ea + eb {
+                uf.union(a, b);
+            }
+        }
     }
 }
 
@@ -157,7 +206,7 @@ mod tests {
         }
         let g = Graph::from_edges(pts.len(), &edges);
         let (dist, pred) = shortest_path_tree(&g, &(0..8).collect::<Vec<_>>());
-        let s = cross_sections(&pts, &g, &dist, &pred, 0.08, Vec3::new(1.0, 0.0, 0.0));
+        let s = cross_sections(&pts, &g, &dist, &pred, 0.08, Vec3::new(1.0, 0.0, 0.0), true);
         assert_eq!(s.nodes.len(), 2);
         assert!(s.nodes[1].position.distance(Vec3::new(1.0, 0.0, 0.1)) < 1e-4);
         assert_eq!(s.nodes[1].parent, Some(NodeId::ROOT));
