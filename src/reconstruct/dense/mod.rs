@@ -65,8 +65,12 @@ pub struct Params {
     /// Lateral subtrees that stay within this many cross-section spreads of
     /// the stem they leave are bark patches, not branches (0 keeps them).
     pub stem_stub_spreads: f32,
-    /// Rounds of smoothing along chains before simplification.
+    /// Rounds of smoothing along thick chains (cross-section spread of at
+    /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
+    /// Douglas–Peucker tolerance in cross-section spreads, where larger than
+    /// [`Params::simplify_bins`]: thick stems' centroids jitter more.
+    pub simplify_spreads: f32,
     /// Douglas–Peucker tolerance, in bin widths.
     pub simplify_bins: f32,
     /// Components with fewer points are dropped as isolated noise.
@@ -91,7 +95,8 @@ impl Default for Params {
             min_branch_bins: 3.0,
             merge_overlapping_arcs: true,
             stem_stub_spreads: 1.5,
-            smoothing_rounds: 1,
+            smoothing_rounds: 3,
+            simplify_spreads: 0.25,
             simplify_bins: 0.3,
             min_component_points: 5,
             max_gap_m: 1.0,
@@ -186,8 +191,12 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         params.min_branch_bins * bin_m,
         params.stem_stub_spreads,
     );
-    simplify::smooth_chains(&mut skeleton, params.smoothing_rounds);
-    let mut skeleton = simplify::douglas_peucker(&skeleton, params.simplify_bins * bin_m);
+    simplify::smooth_chains(&mut skeleton, params.smoothing_rounds, 2.0 * bin_m);
+    let mut skeleton = simplify::douglas_peucker(
+        &skeleton,
+        params.simplify_bins * bin_m,
+        params.simplify_spreads,
+    );
     skeleton.order_main_extension_first();
     let mut skeleton = skeleton.canonical();
     skeleton.set_anchor(Anchor { origin, crs: None });

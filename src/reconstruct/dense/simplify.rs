@@ -137,15 +137,18 @@ fn inside_stem(
     true
 }
 
-/// Smooths node positions along chains (each interior node moves towards
-/// the mean of its parent and its single child, `rounds` times): centroids
-/// of partial cross-sections jitter around the true axis, and the jitter
-/// would otherwise add length. Forks, tips and the root stay in place.
-pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize) {
+/// Smooths node positions along thick chains (each interior node whose
+/// cross-section spread is at least `min_spread_m` moves towards the mean of
+/// its parent and its single child, `rounds` times): on thick stems the
+/// centroids of partial cross-sections jitter around the true axis, and the
+/// jitter would otherwise add length. Twigs keep their detail; forks, tips
+/// and the root stay in place.
+pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize, min_spread_m: f32) {
     for _ in 0..rounds {
         let moved: Vec<(NodeId, Vec3)> = skeleton
             .ids()
             .skip(1)
+            .filter(|&id| skeleton.radius(id) >= min_spread_m)
             .filter_map(|id| {
                 let [child] = skeleton.children(id) else {
                     return None;
@@ -162,10 +165,10 @@ pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize) {
 }
 
 /// Douglas–Peucker along every chain (the run of single-child nodes between
-/// forks and tips): interior nodes closer than `tolerance_m`, or a quarter
-/// of the chain's cross-section spread (held in `radius_m` before the radius
-/// stage), to the simplified line are removed.
-pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32) -> Skeleton {
+/// forks and tips): interior nodes closer than `tolerance_m`, or `spreads`
+/// times the chain's cross-section spread (held in `radius_m` before the
+/// radius stage), to the simplified line are removed.
+pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32, spreads: f32) -> Skeleton {
     let mut keep = vec![true; skeleton.len()];
     for v in skeleton.ids() {
         if v != NodeId::ROOT && skeleton.children(v).len() == 1 {
@@ -182,7 +185,7 @@ pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32) -> Skeleton
             let mut chain_keep = vec![false; pts.len()];
             // Thick stems jitter more (their centroids come from partial
             // rings), so the tolerance grows with the section spread.
-            let tolerance_m = tolerance_m.max(0.25 * skeleton.radius(c));
+            let tolerance_m = tolerance_m.max(spreads * skeleton.radius(c));
             mark_douglas_peucker(&pts, 0, pts.len() - 1, tolerance_m, &mut chain_keep);
             for (&id, &k) in chain.iter().zip(&chain_keep).skip(1) {
                 keep[id.index()] = k || skeleton.children(id).len() != 1;
@@ -269,7 +272,7 @@ mod tests {
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
         let pruned = prune_short_branches(&s, 0.2, 1.5);
         assert_eq!(pruned.len(), 4);
-        let straight = douglas_peucker(&pruned, 0.01);
+        let straight = douglas_peucker(&pruned, 0.01, 0.0);
         assert_eq!(straight.len(), 2);
         assert_eq!(
             straight.position(NodeId::from_index(1)),
