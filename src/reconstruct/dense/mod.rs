@@ -62,6 +62,9 @@ pub struct Params {
     /// Join cross-sections of one bin whose extents overlap (arcs of a
     /// thick stem that ragged distance fronts split).
     pub merge_overlapping_arcs: bool,
+    /// Move thick sections' nodes to the centre of a circle fitted to their
+    /// points (one-sided scans see arcs whose centroid is off the axis).
+    pub centre_arcs: bool,
     /// Lateral subtrees that stay within this many cross-section spreads of
     /// the stem they leave are bark patches, not branches (0 keeps them).
     pub stem_stub_spreads: f32,
@@ -94,6 +97,7 @@ impl Default for Params {
             max_edge_spacings: 20.0,
             min_branch_bins: 3.0,
             merge_overlapping_arcs: true,
+            centre_arcs: true,
             stem_stub_spreads: 1.5,
             smoothing_rounds: 3,
             simplify_spreads: 0.25,
@@ -170,9 +174,12 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         &g,
         &dist,
         &pred,
-        bin_m,
         root,
-        params.merge_overlapping_arcs,
+        &skeletonize::Sectioning {
+            bin_m,
+            merge_overlapping_arcs: params.merge_overlapping_arcs,
+            centre_arcs: params.centre_arcs,
+        },
     );
     drop(g);
 

@@ -11,9 +11,10 @@
 //! point, so the skeleton inherits the shortest-path tree's topology while
 //! its nodes sit inside the branches, not on the bark.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 use super::graph::{Graph, UnionFind};
+use crate::reconstruct::radii::kasa_fit;
 use crate::skeleton::{Node, NodeId};
 
 /// Skeleton nodes (relative to the points' frame) and the number of points
@@ -23,6 +24,16 @@ pub(super) struct Sections {
     pub(super) counts: Vec<u32>,
 }
 
+/// How points are grouped into cross-sections.
+pub(super) struct Sectioning {
+    /// Width of the geodesic-distance bins, in metres.
+    pub(super) bin_m: f32,
+    /// Join same-bin sections whose extents overlap.
+    pub(super) merge_overlapping_arcs: bool,
+    /// Centre thick sections on a fitted circle.
+    pub(super) centre_arcs: bool,
+}
+
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
 /// shortest-path tree over `graph`; every point must be reachable.
 pub(super) fn cross_sections(
@@ -30,10 +41,10 @@ pub(super) fn cross_sections(
     graph: &Graph,
     dist: &[f32],
     pred: &[u32],
-    bin_m: f32,
     root: Vec3,
-    merge_overlapping_arcs: bool,
+    opts: &Sectioning,
 ) -> Sections {
+    let bin_m = opts.bin_m;
     let n = points.len();
     let bin: Vec<u32> = dist.iter().map(|&d| (d / bin_m) as u32).collect();
     let mut uf = UnionFind::new(n);
@@ -51,7 +62,7 @@ pub(super) fn cross_sections(
             }
         }
     }
-    if merge_overlapping_arcs {
+    if opts.merge_overlapping_arcs {
         let stats = Stats::gather(points, dist, &mut uf);
         merge_overlapping(points, &bin, &stats, &mut uf);
     }
@@ -105,7 +116,46 @@ pub(super) fn cross_sections(
         });
         counts.push(count[r]);
     }
+    if opts.centre_arcs {
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
+        for i in 0..n as u32 {
+            members[node_of[uf.find(i) as usize] as usize].push(i);
+        }
+        centre_on_arcs(points, &members, &mut nodes, 2.0 * bin_m);
+    }
     Sections { nodes, counts }
+}
+
+/// Moves the nodes of thick sections from the centroid to the centre of a
+/// circle fitted (Kåsa) to the section's points across the branch direction.
+/// A scanner sees one side of a thick branch: the centroid of that arc lies
+/// towards the scanner, the circle's centre on the axis. Sections thinner
+/// than `min_spread_m` or with fewer than 12 points keep the centroid, as do
+/// implausible fits.
+fn centre_on_arcs(points: &[Vec3], members: &[Vec<u32>], nodes: &mut [Node], min_spread_m: f32) {
+    for id in 1..nodes.len() {
+        let (spread, centroid) = (nodes[id].radius_m, nodes[id].position);
+        if members[id].len() < 12 || spread < min_spread_m {
+            continue;
+        }
+        let parent = nodes[id].parent.map_or(0, NodeId::index);
+        let dir = (centroid - nodes[parent].position).normalize_or(Vec3::Z);
+        let e1 = dir.any_orthonormal_vector();
+        let e2 = dir.cross(e1);
+        let flat: Vec<Vec2> = members[id]
+            .iter()
+            .map(|&i| {
+                let d = points[i as usize] - centroid;
+                Vec2::new(d.dot(e1), d.dot(e2))
+            })
+            .collect();
+        let Some(circle) = kasa_fit(&flat) else {
+            continue;
+        };
+        if circle.radius < 3.0 * spread && circle.centre.length() < 2.0 * spread {
+            nodes[id].position = centroid + e1 * circle.centre.x + e2 * circle.centre.y;
+        }
+    }
 }
 
 /// Per cross-section (indexed by union-find root): the point closest to the
@@ -206,7 +256,18 @@ mod tests {
         }
         let g = Graph::from_edges(pts.len(), &edges);
         let (dist, pred) = shortest_path_tree(&g, &(0..8).collect::<Vec<_>>());
-        let s = cross_sections(&pts, &g, &dist, &pred, 0.08, Vec3::new(1.0, 0.0, 0.0), true);
+        let s = cross_sections(
+            &pts,
+            &g,
+            &dist,
+            &pred,
+            Vec3::new(1.0, 0.0, 0.0),
+            &Sectioning {
+                bin_m: 0.08,
+                merge_overlapping_arcs: true,
+                centre_arcs: false,
+            },
+        );
         assert_eq!(s.nodes.len(), 2);
         assert!(s.nodes[1].position.distance(Vec3::new(1.0, 0.0, 0.1)) < 1e-4);
         assert_eq!(s.nodes[1].parent, Some(NodeId::ROOT));
