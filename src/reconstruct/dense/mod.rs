@@ -2,7 +2,7 @@
 //! (Du et al. 2019, as summarised in lsystem-from-adtree-skeletons §2.1.1 and
 //! multi-temporal-tree-growth §3.2.1).
 //!
-//! Steps, each in its own file:
+//! Steps:
 //! 1. clean-up with [`crate::cloud::clean::voxel_downsample`]: near-duplicate
 //!    removal (more than `k` copies of a point would form an isolated clique
 //!    in the graph) and, for huge clouds, voxel thinning to at most
@@ -14,10 +14,13 @@
 //!    (every point of the lowest slice is a source, so the distance fronts
 //!    start level instead of spreading from one bark point);
 //! 3. [`skeletonize`]: cross-sections of equal geodesic distance collapse to
-//!    their centroids, i.e. skeleton nodes at branch centres;
-//! 4. [`simplify`]: near-duplicate children merged, short noisy branches
-//!    dropped by subtree length, Douglas–Peucker along chains, main
-//!    extension first.
+//!    skeleton nodes at branch centres (centroids; on thick one-sided
+//!    sections, the centre of a fitted circle), with the arcs of one stem
+//!    section that ragged distance fronts split joined again;
+//! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
+//!    (shorter than a few bins by subtree length, or bark patches that never
+//!    leave their stem), thick stems smoothed, Douglas–Peucker along chains,
+//!    main extension first.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines.
@@ -205,8 +208,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         params.simplify_spreads,
     );
     skeleton.order_main_extension_first();
-    let mut skeleton = skeleton.canonical();
-    skeleton.set_anchor(Anchor { origin, crs: None });
+    let skeleton = skeleton.canonical();
     let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
     Ok(DenseOutput {
         skeleton,
