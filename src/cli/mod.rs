@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 mod info;
 mod synth;
+mod reconstruct;
 
 /// silva: tree skeletons from LiDAR point clouds.
 #[derive(Debug, Parser)]
@@ -22,6 +23,8 @@ enum Command {
     Info(info::Args),
     /// Generate a synthetic tree with its true skeleton and a simulated TLS or ALS scan.
     Synth(synth::Args),
+    /// Reconstruct one tree's skeleton with radii and its metrics.
+    Reconstruct(reconstruct::Args),
 }
 
 /// Runs the parsed command line.
@@ -29,6 +32,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(args),
         Command::Synth(args) => synth::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
     }
 }
 

@@ -1,0 +1,282 @@
+//! Skeleton simplification after AdTree (lsystem-from-adtree-skeletons
+//! §2.1.1, "Skeleton simplification"): merge near-duplicate children, drop
+//! noisy short branches weighted by their subtree length, and thin chains
+//! with Douglas–Peucker.
+
+use glam::Vec3;
+
+use crate::skeleton::{Node, NodeId, Skeleton};
+
+/// Merges children of one node that lie within `merge_m` of each other: two
+/// cross-sections of the same branch that sampling gaps split apart. The
+/// merged node sits at the point-weighted mean, and the grandchildren become
+/// siblings, so parallel duplicate chains zip together from the fork up.
+pub(super) fn merge_close_siblings(
+    mut nodes: Vec<Node>,
+    mut counts: Vec<u32>,
+    merge_m: f32,
+) -> Vec<Node> {
+    let n = nodes.len();
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, node) in nodes.iter().enumerate() {
+        if let Some(p) = node.parent {
+            children[p.index()].push(i);
+        }
+    }
+    let mut alive = vec![true; n];
+    for v in 0..n {
+        'again: loop {
+            let kids = &children[v];
+            for (x, &a) in kids.iter().enumerate() {
+                for &b in &kids[x + 1..] {
+                    if nodes[a].position.distance(nodes[b].position) < merge_m {
+                        let (keep, gone) = (a.min(b), a.max(b));
+                        let (wk, wg) = (counts[keep] as f32, counts[gone] as f32);
+                        nodes[keep].position = (nodes[keep].position * wk
+                            + nodes[gone].position * wg)
+                            / (wk + wg).max(1.0);
+                        counts[keep] += counts[gone];
+                        alive[gone] = false;
+                        let moved = std::mem::take(&mut children[gone]);
+                        for &g in &moved {
+                            nodes[g].parent = Some(NodeId::from_index(keep));
+                        }
+                        children[keep].extend(moved);
+                        children[v].retain(|&c| c != gone);
+                        continue 'again;
+                    }
+                }
+            }
+            break;
+        }
+    }
+    compact(nodes, &alive)
+}
+
+/// Drops dead nodes and renumbers parents (order is preserved, so parents
+/// still precede children).
+fn compact(nodes: Vec<Node>, alive: &[bool]) -> Vec<Node> {
+    let mut new_id = vec![0usize; nodes.len()];
+    let mut next = 0;
+    for (i, &a) in alive.iter().enumerate() {
+        new_id[i] = next;
+        next += usize::from(a);
+    }
+    nodes
+        .into_iter()
+        .zip(alive)
+        .filter(|(_, a)| **a)
+        .map(|(mut node, _)| {
+            node.parent = node.parent.map(|p| NodeId::from_index(new_id[p.index()]));
+            node
+        })
+        .collect()
+}
+
+/// Removes lateral subtrees that are noise: shorter than `min_branch_m`
+/// (including the internode into them), or never leaving the parent stem
+/// (see [`inside_stem`]). The heaviest child of each fork always stays, so
+/// branches keep their full length.
+pub(super) fn prune_short_branches(
+    skeleton: &Skeleton,
+    min_branch_m: f32,
+    stem_spreads: f32,
+) -> Skeleton {
+    let sub = skeleton.subtree_lengths();
+    let weight = |c: NodeId| sub[c.index()] + skeleton.internode_length(c);
+    let mut keep = vec![true; skeleton.len()];
+    for v in skeleton.ids() {
+        if !keep[v.index()] {
+            for &c in skeleton.children(v) {
+                keep[c.index()] = false;
+            }
+            continue;
+        }
+        let kids = skeleton.children(v);
+        if kids.len() < 2 {
+            continue;
+        }
+        let heaviest = kids
+            .iter()
+            .copied()
+            .max_by(|&a, &b| weight(a).total_cmp(&weight(b)));
+        let Some(main) = heaviest else { continue };
+        for &c in kids {
+            if c != main
+                && (weight(c) < min_branch_m || inside_stem(skeleton, v, main, c, stem_spreads))
+            {
+                keep[c.index()] = false;
+            }
+        }
+    }
+    skeleton.retain(&keep)
+}
+
+/// True when the lateral subtree at `lateral` stays within `spreads` cross-section
+/// spreads of the stem axis through `fork` towards `main`: a chain of bark
+/// patches that ragged distance fronts split off the stem, not a branch.
+/// (Until the radius stage runs, `radius_m` holds the sections' spread.)
+fn inside_stem(
+    skeleton: &Skeleton,
+    fork: NodeId,
+    main: NodeId,
+    lateral: NodeId,
+    spreads: f32,
+) -> bool {
+    let origin = skeleton.position(fork);
+    let axis = (skeleton.position(main) - origin).normalize_or(Vec3::Z);
+    let limit = spreads * skeleton.radius(fork);
+    let mut stack = vec![lateral];
+    while let Some(id) = stack.pop() {
+        let d = skeleton.position(id) - origin;
+        if (d - axis * d.dot(axis)).length() > limit {
+            return false;
+        }
+        stack.extend_from_slice(skeleton.children(id));
+    }
+    true
+}
+
+/// Smooths node positions along thick chains (each interior node whose
+/// cross-section spread is at least `min_spread_m` moves towards the mean of
+/// its parent and its single child, `rounds` times): on thick stems the
+/// centroids of partial cross-sections jitter around the true axis, and the
+/// jitter would otherwise add length. Twigs keep their detail; forks, tips
+/// and the root stay in place.
+pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize, min_spread_m: f32) {
+    for _ in 0..rounds {
+        let moved: Vec<(NodeId, Vec3)> = skeleton
+            .ids()
+            .skip(1)
+            .filter(|&id| skeleton.radius(id) >= min_spread_m)
+            .filter_map(|id| {
+                let [child] = skeleton.children(id) else {
+                    return None;
+                };
+                let parent = skeleton.parent(id)?;
+                let mean = 0.5 * (skeleton.position(parent) + skeleton.position(*child));
+                Some((id, 0.5 * (skeleton.position(id) + mean)))
+            })
+            .collect();
+        for (id, p) in moved {
+            skeleton.set_position(id, p);
+        }
+    }
+}
+
+/// Douglas–Peucker along every chain (the run of single-child nodes between
+/// forks and tips): interior nodes closer than `tolerance_m`, or `spreads`
+/// times the chain's cross-section spread (held in `radius_m` before the
+/// radius stage), to the simplified line are removed.
+pub(super) fn douglas_peucker(skeleton: &Skeleton, tolerance_m: f32, spreads: f32) -> Skeleton {
+    let mut keep = vec![true; skeleton.len()];
+    for v in skeleton.ids() {
+        if v != NodeId::ROOT && skeleton.children(v).len() == 1 {
+            continue; // not a chain start
+        }
+        for &c in skeleton.children(v) {
+            let mut chain = vec![v, c];
+            let mut end = c;
+            while skeleton.children(end).len() == 1 {
+                end = skeleton.children(end)[0];
+                chain.push(end);
+            }
+            let pts: Vec<Vec3> = chain.iter().map(|&id| skeleton.position(id)).collect();
+            let mut chain_keep = vec![false; pts.len()];
+            // Thick stems jitter more (their centroids come from partial
+            // rings), so the tolerance grows with the section spread.
+            let tolerance_m = tolerance_m.max(spreads * skeleton.radius(c));
+            mark_douglas_peucker(&pts, 0, pts.len() - 1, tolerance_m, &mut chain_keep);
+            for (&id, &k) in chain.iter().zip(&chain_keep).skip(1) {
+                keep[id.index()] = k || skeleton.children(id).len() != 1;
+            }
+        }
+    }
+    skeleton.retain(&keep)
+}
+
+/// Marks the endpoints and, recursively, the farthest interior point while
+/// it deviates more than `tolerance_m` from the segment.
+fn mark_douglas_peucker(
+    pts: &[Vec3],
+    first: usize,
+    last: usize,
+    tolerance_m: f32,
+    keep: &mut [bool],
+) {
+    keep[first] = true;
+    keep[last] = true;
+    if last <= first + 1 {
+        return;
+    }
+    let (a, b) = (pts[first], pts[last]);
+    let (far, dev) = (first + 1..last)
+        .map(|i| (i, point_segment_distance(pts[i], a, b)))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .unwrap_or((first, 0.0));
+    if dev > tolerance_m {
+        mark_douglas_peucker(pts, first, far, tolerance_m, keep);
+        mark_douglas_peucker(pts, far, last, tolerance_m, keep);
+    }
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub(crate) fn point_segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    let t = if len2 > 0.0 {
+        ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    p.distance(a + ab * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::Anchor;
+
+    fn node(p: [f32; 3], parent: Option<usize>) -> Node {
+        Node {
+            position: Vec3::from(p),
+            radius_m: 0.0,
+            parent: parent.map(NodeId::from_index),
+        }
+    }
+
+    #[test]
+    fn close_siblings_merge_and_adopt_grandchildren() {
+        let nodes = vec![
+            node([0.0, 0.0, 0.0], None),
+            node([0.0, 0.0, 1.0], Some(0)),
+            node([0.02, 0.0, 1.0], Some(0)),
+            node([0.0, 0.0, 2.0], Some(1)),
+            node([0.02, 0.0, 2.0], Some(2)),
+        ];
+        let merged = merge_close_siblings(nodes, vec![1; 5], 0.05);
+        assert_eq!(merged.len(), 3);
+        assert!((merged[1].position.x - 0.01).abs() < 1e-6);
+        assert_eq!(merged[2].parent, Some(NodeId::from_index(1)));
+    }
+
+    #[test]
+    fn short_stubs_go_and_douglas_peucker_straightens_chains() {
+        let nodes = vec![
+            node([0.0, 0.0, 0.0], None),
+            node([0.0, 0.0, 1.0], Some(0)),
+            node([0.001, 0.0, 2.0], Some(1)),
+            node([0.0, 0.0, 3.0], Some(2)),
+            node([0.05, 0.0, 1.05], Some(1)), // a 7 cm stub
+        ];
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let pruned = prune_short_branches(&s, 0.2, 1.5);
+        assert_eq!(pruned.len(), 4);
+        let straight = douglas_peucker(&pruned, 0.01, 0.0);
+        assert_eq!(straight.len(), 2);
+        assert_eq!(
+            straight.position(NodeId::from_index(1)),
+            Vec3::new(0.0, 0.0, 3.0)
+        );
+    }
+}

@@ -1,0 +1,276 @@
+//! From the shortest-path tree to skeleton nodes at branch centres.
+//!
+//! AdTree's minimum spanning tree runs over the bark, zigzagging between
+//! surface points, and AdTree then centres it (mean shift) and simplifies it
+//! (lsystem-from-adtree-skeletons §2.1.1; multi-temporal-tree-growth §3.2.1
+//! describes the same zigzag). silva does both in one step: points are
+//! binned by their geodesic distance from the trunk base; within a bin, the
+//! points that are linked by graph edges form one cross-section of one
+//! branch, and its centroid becomes a skeleton node. A node's parent is the
+//! cross-section that holds the shortest-path predecessor of its closest
+//! point, so the skeleton inherits the shortest-path tree's topology while
+//! its nodes sit inside the branches, not on the bark.
+
+use glam::{DVec3, Vec2, Vec3};
+
+use super::graph::{Graph, UnionFind};
+use crate::reconstruct::radii::kasa_fit;
+use crate::skeleton::{Node, NodeId};
+
+/// Skeleton nodes (relative to the points' frame) and the number of points
+/// behind each; node 0 is the root at `root`.
+pub(super) struct Sections {
+    pub(super) nodes: Vec<Node>,
+    pub(super) counts: Vec<u32>,
+}
+
+/// How points are grouped into cross-sections.
+pub(super) struct Sectioning {
+    /// Width of the geodesic-distance bins, in metres.
+    pub(super) bin_m: f32,
+    /// Join same-bin sections whose extents overlap.
+    pub(super) merge_overlapping_arcs: bool,
+    /// Centre thick sections on a fitted circle.
+    pub(super) centre_arcs: bool,
+}
+
+/// Builds one node per branch cross-section. `dist` and `pred` come from the
+/// shortest-path tree over `graph`; every point must be reachable.
+pub(super) fn cross_sections(
+    points: &[Vec3],
+    graph: &Graph,
+    dist: &[f32],
+    pred: &[u32],
+    root: Vec3,
+    opts: &Sectioning,
+) -> Sections {
+    let bin_m = opts.bin_m;
+    let n = points.len();
+    let bin: Vec<u32> = dist.iter().map(|&d| (d / bin_m) as u32).collect();
+    let mut uf = UnionFind::new(n);
+    // Bin 0 (everything within one bin of the base slice) is the root.
+    let first_base = (0..n).find(|&i| bin[i] == 0).unwrap_or(0) as u32;
+    for i in 0..n as u32 {
+        if bin[i as usize] == 0 {
+            uf.union(first_base, i);
+        }
+    }
+    for v in 0..n {
+        for &(w, _) in graph.neighbours(v) {
+            if bin[v] == bin[w as usize] {
+                uf.union(v as u32, w);
+            }
+        }
+    }
+    if opts.merge_overlapping_arcs {
+        let stats = Stats::gather(points, dist, &mut uf);
+        merge_overlapping(points, &bin, &stats, &mut uf);
+    }
+    let Stats {
+        lowest,
+        sum,
+        sum_sq,
+        count,
+    } = Stats::gather(points, dist, &mut uf);
+    let mut sections: Vec<usize> = (0..n).filter(|&r| count[r] > 0).collect();
+    sections.sort_by(|&a, &b| {
+        let (la, lb) = (lowest[a] as usize, lowest[b] as usize);
+        (bin[la], dist[la])
+            .partial_cmp(&(bin[lb], dist[lb]))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut node_of = vec![u32::MAX; n];
+    let mut nodes = Vec::with_capacity(sections.len());
+    let mut counts = Vec::with_capacity(sections.len());
+    for (id, &r) in sections.iter().enumerate() {
+        node_of[r] = id as u32;
+        let low = lowest[r] as usize;
+        let (position, parent) = if id == 0 {
+            (root, None)
+        } else {
+            let p = pred[low];
+            // Reachability guarantees a predecessor in a lower bin, whose
+            // section is already numbered; fall back to the root otherwise.
+            let parent_node = if p == u32::MAX {
+                0
+            } else {
+                node_of[uf.find(p) as usize]
+            };
+            let parent_node = if parent_node == u32::MAX {
+                0
+            } else {
+                parent_node
+            };
+            let centroid = (sum[r] / f64::from(count[r])).as_vec3();
+            (centroid, Some(NodeId::from_index(parent_node as usize)))
+        };
+        let c = f64::from(count[r]);
+        let mean = sum[r] / c;
+        let spread = (sum_sq[r] / c - mean.length_squared()).max(0.0).sqrt() as f32;
+        // The spread stands in for the radius until the radius stage runs;
+        // pruning uses it to tell bark noise from branches.
+        nodes.push(Node {
+            position,
+            radius_m: spread,
+            parent,
+        });
+        counts.push(count[r]);
+    }
+    if opts.centre_arcs {
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
+        for i in 0..n as u32 {
+            members[node_of[uf.find(i) as usize] as usize].push(i);
+        }
+        centre_on_arcs(points, &members, &mut nodes, 2.0 * bin_m);
+    }
+    Sections { nodes, counts }
+}
+
+/// Moves the nodes of thick sections from the centroid to the centre of a
+/// circle fitted (Kåsa) to the section's points across the branch direction.
+/// A scanner sees one side of a thick branch: the centroid of that arc lies
+/// towards the scanner, the circle's centre on the axis. Sections thinner
+/// than `min_spread_m` or with fewer than 12 points keep the centroid, as do
+/// implausible fits.
+fn centre_on_arcs(points: &[Vec3], members: &[Vec<u32>], nodes: &mut [Node], min_spread_m: f32) {
+    for id in 1..nodes.len() {
+        let (spread, centroid) = (nodes[id].radius_m, nodes[id].position);
+        if members[id].len() < 12 || spread < min_spread_m {
+            continue;
+        }
+        let parent = nodes[id].parent.map_or(0, NodeId::index);
+        let dir = (centroid - nodes[parent].position).normalize_or(Vec3::Z);
+        let e1 = dir.any_orthonormal_vector();
+        let e2 = dir.cross(e1);
+        let flat: Vec<Vec2> = members[id]
+            .iter()
+            .map(|&i| {
+                let d = points[i as usize] - centroid;
+                Vec2::new(d.dot(e1), d.dot(e2))
+            })
+            .collect();
+        let Some(circle) = kasa_fit(&flat) else {
+            continue;
+        };
+        if circle.radius < 3.0 * spread && circle.centre.length() < 2.0 * spread {
+            nodes[id].position = centroid + e1 * circle.centre.x + e2 * circle.centre.y;
+        }
+    }
+}
+
+/// Per cross-section (indexed by union-find root): the point closest to the
+/// base, the coordinate sums and the point count.
+struct Stats {
+    lowest: Vec<u32>,
+    sum: Vec<DVec3>,
+    sum_sq: Vec<f64>,
+    count: Vec<u32>,
+}
+
+impl Stats {
+    fn gather(points: &[Vec3], dist: &[f32], uf: &mut UnionFind) -> Stats {
+        let n = points.len();
+        let mut st = Stats {
+            lowest: vec![u32::MAX; n],
+            sum: vec![DVec3::ZERO; n],
+            sum_sq: vec![0f64; n],
+            count: vec![0u32; n],
+        };
+        for i in 0..n as u32 {
+            let r = uf.find(i) as usize;
+            let low = st.lowest[r];
+            if low == u32::MAX || dist[i as usize] < dist[low as usize] {
+                st.lowest[r] = i;
+            }
+            let p = points[i as usize].as_dvec3();
+            st.sum[r] += p;
+            st.sum_sq[r] += p.length_squared();
+            st.count[r] += 1;
+        }
+        st
+    }
+
+    fn centroid(&self, r: usize) -> Vec3 {
+        (self.sum[r] / f64::from(self.count[r].max(1))).as_vec3()
+    }
+}
+
+/// Joins sections of one bin whose extents (largest distance of a point to
+/// the centroid) overlap: on a thick stem the distance fronts are ragged,
+/// so one cross-section of the stem falls apart into arcs, and the arcs'
+/// extents overlap, while separate twigs keep apart.
+fn merge_overlapping(points: &[Vec3], bin: &[u32], stats: &Stats, uf: &mut UnionFind) {
+    let n = points.len();
+    let mut extent = vec![0f32; n];
+    for i in 0..n as u32 {
+        let r = uf.find(i) as usize;
+        let d = points[i as usize].distance(stats.centroid(r));
+        extent[r] = extent[r].max(d);
+    }
+    // Sections by bin, then by centroid x for a sweep.
+    let mut sections: Vec<(u32, f32, u32)> = (0..n)
+        .filter(|&r| stats.count[r] > 0 && bin[stats.lowest[r] as usize] > 0)
+        .map(|r| (bin[stats.lowest[r] as usize], stats.centroid(r).x, r as u32))
+        .collect();
+    sections.sort_by(|a, b| {
+        (a.0, a.1)
+            .partial_cmp(&(b.0, b.1))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let widest = extent.iter().copied().fold(0.0, f32::max);
+    for (i, &(bin_a, xa, a)) in sections.iter().enumerate() {
+        let (ca, ea) = (stats.centroid(a as usize), extent[a as usize]);
+        for &(bin_b, xb, b) in &sections[i + 1..] {
+            if bin_b != bin_a || xb - xa > ea + widest {
+                break;
+            }
+            let (cb, eb) = (stats.centroid(b as usize), extent[b as usize]);
+            if ca.distance(cb) < ea + eb {
+                uf.union(a, b);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::graph::{Graph, shortest_path_tree};
+    use super::*;
+
+    #[test]
+    fn a_ring_of_points_collapses_to_its_centre() {
+        // Two rings of 8 points, 0.1 m apart vertically: bin 0 holds the
+        // lower ring, the upper ring becomes one node at its centre.
+        let mut pts = Vec::new();
+        for z in [0.0, 0.1] {
+            for k in 0..8 {
+                let a = k as f32 * std::f32::consts::TAU / 8.0;
+                pts.push(Vec3::new(1.0 + 0.05 * a.cos(), 0.05 * a.sin(), z));
+            }
+        }
+        let mut edges = Vec::new();
+        for k in 0..8u32 {
+            edges.push((k, (k + 1) % 8, 0.04));
+            edges.push((8 + k, 8 + (k + 1) % 8, 0.04));
+            edges.push((k, k + 8, 0.1));
+        }
+        let g = Graph::from_edges(pts.len(), &edges);
+        let (dist, pred) = shortest_path_tree(&g, &(0..8).collect::<Vec<_>>());
+        let s = cross_sections(
+            &pts,
+            &g,
+            &dist,
+            &pred,
+            Vec3::new(1.0, 0.0, 0.0),
+            &Sectioning {
+                bin_m: 0.08,
+                merge_overlapping_arcs: true,
+                centre_arcs: false,
+            },
+        );
+        assert_eq!(s.nodes.len(), 2);
+        assert!(s.nodes[1].position.distance(Vec3::new(1.0, 0.0, 0.1)) < 1e-4);
+        assert_eq!(s.nodes[1].parent, Some(NodeId::ROOT));
+        assert_eq!(s.counts, vec![8, 8]);
+    }
+}
