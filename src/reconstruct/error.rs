@@ -14,4 +14,20 @@ pub enum ReconstructError {
     /// The cloud is degenerate (collinear, planar, or upside down).
     #[error("{0} (silva assumes the z axis points up and the cloud holds one upright tree)")]
     Degenerate(String),
+    /// Ground removal left too few points for a tree.
+    #[error(
+        "only {tree} points above the ground ({ground} ground points); at least {needed} needed \
+         for a tree"
+    )]
+    NoTreeAboveGround {
+        /// Points left after ground removal.
+        tree: usize,
+        /// Points identified as ground.
+        ground: usize,
+        /// The minimum the pipeline accepts.
+        needed: usize,
+    },
+    /// A reconstruction parameter is out of its valid range.
+    #[error("invalid reconstruction parameters: {0}")]
+    InvalidParameter(String),
 }

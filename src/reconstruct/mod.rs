@@ -5,5 +5,7 @@
 //! Hu et al. (airborne-lidar-tree-modeling §3), radius fitting, and tree
 //! metrics. Plain synchronous code: no IO.
 
+pub mod airborne;
 mod error;
+pub mod ground;
 pub use error::ReconstructError;
