@@ -20,6 +20,10 @@ use glam::Vec3;
 use super::Params;
 use crate::skeleton::{Anchor, Node, NodeId, Skeleton};
 
+/// Resolution of the bending-angle ordering of child candidates (radians,
+/// 5°); see the sort in [`skeleton_produce`].
+const ALPHA_STEP: f32 = 5.0 * std::f32::consts::PI / 180.0;
+
 /// The tree Algorithm 2 produced, as skeleton nodes over candidate points.
 #[derive(Debug, Clone)]
 pub(super) struct Produced {
@@ -28,6 +32,8 @@ pub(super) struct Produced {
     pub(super) nodes: Vec<(u32, Option<u32>)>,
     /// Candidate points marked visited (skeleton nodes and pruned ones).
     pub(super) visited: usize,
+    /// Of those, the points Algorithm 2 itself reached, before re-attachment.
+    pub(super) reached_by_algorithm2: usize,
 }
 
 /// A child candidate of the popped point (the paper's node n_s).
@@ -38,7 +44,9 @@ struct Candidate {
 }
 
 /// Algorithm 2 over `points` with graph `adjacency` and direction field
-/// `field`, starting with the segment `start` → `end` (§5.4).
+/// `field`, starting with the segment `start` → `end` (§5.4), followed by
+/// [`Growth::reattach`] rounds until no unvisited point borders the
+/// skeleton.
 pub(super) fn skeleton_produce(
     points: &[Vec3],
     adjacency: &[Vec<u32>],
@@ -47,61 +55,157 @@ pub(super) fn skeleton_produce(
     end: usize,
     params: &Params,
 ) -> Produced {
-    let alpha_max = params.alpha_max_deg.to_radians();
-    let beta_max = params.beta_max_deg.to_radians();
-    let phi_max = params.phi_max_deg.to_radians();
-    let mut visited = vec![false; points.len()];
-    visited[start] = true;
-    visited[end] = true;
-    let mut nodes = vec![(start as u32, None), (end as u32, Some(0))];
-    // Queue entries: (key bits, sequence, k, i, node of i). Keys are in
-    // [0, 1], where the bit pattern of a non-negative f32 orders like its
-    // value; the sequence number breaks ties in insertion order.
-    let mut queue = BinaryHeap::new();
-    queue.push(Reverse((
-        1.0f32.to_bits(),
-        0u64,
-        start as u32,
-        end as u32,
-        1u32,
-    )));
-    let mut sequence = 1u64;
-    let mut candidates: Vec<Candidate> = Vec::new();
-    while let Some(Reverse((_, _, k, i, node_i))) = queue.pop() {
-        let p_i = points[i as usize];
-        let parent = p_i - points[k as usize];
-        candidates.clear();
-        for &j in &adjacency[i as usize] {
-            if visited[j as usize] {
-                continue;
-            }
-            let child = points[j as usize] - p_i;
-            let alpha = angle(child, parent);
-            let beta = angle(field[j as usize], child);
-            if alpha < alpha_max && beta < beta_max {
-                candidates.push(Candidate { child, alpha, j });
-                visited[j as usize] = true;
-            }
-        }
-        candidates.sort_by(|a, b| {
-            a.alpha.total_cmp(&b.alpha).then(
-                a.child
-                    .length_squared()
-                    .total_cmp(&b.child.length_squared()),
-            )
-        });
-        prune(&mut candidates, phi_max);
-        for c in &candidates {
-            let node = nodes.len() as u32;
-            nodes.push((c.j, Some(node_i)));
-            let key = (c.alpha / alpha_max).clamp(0.0, 1.0);
-            queue.push(Reverse((key.to_bits(), sequence, i, c.j, node)));
-            sequence += 1;
-        }
+    let mut growth = Growth::new(points, adjacency, field, params);
+    growth.visit(start, None);
+    let end_node = growth.visit(end, Some(0));
+    growth.push(0.0, start as u32, end as u32, end_node);
+    growth.run();
+    let reached = growth.visited_count();
+    let mut rounds = 0;
+    while rounds < MAX_REATTACH_ROUNDS && growth.reattach() {
+        growth.run();
+        rounds += 1;
     }
     Produced {
-        nodes,
-        visited: visited.iter().filter(|&&v| v).count(),
+        reached_by_algorithm2: reached,
+        visited: growth.visited_count(),
+        nodes: growth.nodes,
+    }
+}
+
+/// Most rounds of re-attachment after Algorithm 2; each round extends the
+/// skeleton by at least one graph hop, and crowns are a few dozen hops wide.
+const MAX_REATTACH_ROUNDS: usize = 200;
+
+/// The state of Algorithm 2: visited flags, the tree T (as nodes) and the
+/// priority queue Q.
+struct Growth<'a> {
+    points: &'a [Vec3],
+    adjacency: &'a [Vec<u32>],
+    field: &'a [Vec3],
+    alpha_max: f32,
+    beta_max: f32,
+    phi_max: f32,
+    visited: Vec<bool>,
+    /// Skeleton node of each point that is one, `u32::MAX` otherwise.
+    node_of: Vec<u32>,
+    nodes: Vec<(u32, Option<u32>)>,
+    /// Entries (key bits, sequence, k, i, node of i). Keys are in [0, 1],
+    /// where the bit pattern of a non-negative f32 orders like its value;
+    /// the sequence number breaks ties in insertion order.
+    queue: BinaryHeap<Reverse<(u32, u64, u32, u32, u32)>>,
+    sequence: u64,
+}
+
+impl<'a> Growth<'a> {
+    fn new(
+        points: &'a [Vec3],
+        adjacency: &'a [Vec<u32>],
+        field: &'a [Vec3],
+        params: &Params,
+    ) -> Self {
+        Self {
+            points,
+            adjacency,
+            field,
+            alpha_max: params.alpha_max_deg.to_radians(),
+            beta_max: params.beta_max_deg.to_radians(),
+            phi_max: params.phi_max_deg.to_radians(),
+            visited: vec![false; points.len()],
+            node_of: vec![u32::MAX; points.len()],
+            nodes: Vec::new(),
+            queue: BinaryHeap::new(),
+            sequence: 0,
+        }
+    }
+
+    fn visited_count(&self) -> usize {
+        self.visited.iter().filter(|&&v| v).count()
+    }
+
+    /// Makes point `j` a skeleton node under `parent` and returns the node.
+    fn visit(&mut self, j: usize, parent: Option<u32>) -> u32 {
+        let node = self.nodes.len() as u32;
+        self.nodes.push((j as u32, parent));
+        self.visited[j] = true;
+        self.node_of[j] = node;
+        node
+    }
+
+    fn push(&mut self, key: f32, k: u32, i: u32, node_i: u32) {
+        let key = key.clamp(0.0, 1.0).to_bits();
+        self.queue.push(Reverse((key, self.sequence, k, i, node_i)));
+        self.sequence += 1;
+    }
+
+    /// The main loop of Algorithm 2, until Q is empty.
+    fn run(&mut self) {
+        let mut candidates: Vec<Candidate> = Vec::new();
+        while let Some(Reverse((_, _, k, i, node_i))) = self.queue.pop() {
+            let p_i = self.points[i as usize];
+            let parent = p_i - self.points[k as usize];
+            candidates.clear();
+            for &j in &self.adjacency[i as usize] {
+                if self.visited[j as usize] {
+                    continue;
+                }
+                let child = self.points[j as usize] - p_i;
+                let alpha = angle(child, parent);
+                let beta = angle(self.field[j as usize], child);
+                if alpha < self.alpha_max && beta < self.beta_max {
+                    candidates.push(Candidate { child, alpha, j });
+                    self.visited[j as usize] = true;
+                }
+            }
+            // Sort by α (the paper's C.sort()), in steps of ALPHA_STEP so
+            // that near-ties (collinear points, float noise) go to the
+            // farther point: every qualifying neighbour was just marked
+            // visited, so a near survivor would find its own neighbourhood
+            // used up and stall.
+            candidates.sort_by(|a, b| {
+                let bucket = |c: &Candidate| (c.alpha / ALPHA_STEP).floor();
+                bucket(a).total_cmp(&bucket(b)).then(
+                    b.child
+                        .length_squared()
+                        .total_cmp(&a.child.length_squared()),
+                )
+            });
+            prune(&mut candidates, self.phi_max);
+            for c in &candidates {
+                let node = self.visit(c.j as usize, Some(node_i));
+                self.push(c.alpha / self.alpha_max, i, c.j, node);
+            }
+        }
+    }
+
+    /// Sparse airborne graphs leave points that Algorithm 2's greedy claims
+    /// cut off: a pruned candidate stays visited and walls off what lies
+    /// behind it (Hu et al. §6.2 retry parameter sets until 85 % are
+    /// visited). Instead, every point that is not yet a skeleton node (pruned
+    /// or never visited) and is adjacent to one is attached to the nearest
+    /// such node and grown from. False when no point could be attached.
+    fn reattach(&mut self) -> bool {
+        let mut attached = false;
+        for j in 0..self.points.len() {
+            if self.node_of[j] != u32::MAX {
+                continue;
+            }
+            let p_j = self.points[j];
+            let nearest = self.adjacency[j]
+                .iter()
+                .filter(|&&i| self.node_of[i as usize] != u32::MAX)
+                .min_by(|&&a, &&b| {
+                    let da = self.points[a as usize].distance_squared(p_j);
+                    let db = self.points[b as usize].distance_squared(p_j);
+                    da.total_cmp(&db)
+                });
+            if let Some(&i) = nearest {
+                let node = self.visit(j, Some(self.node_of[i as usize]));
+                self.push(1.0, i, j as u32, node);
+                attached = true;
+            }
+        }
+        attached
     }
 }
 

@@ -9,6 +9,12 @@
 //! Otherwise v_low is a low branch, not the trunk, and the root is put at the
 //! centre of the crown's ground footprint g_b, with trunk points interpolated
 //! up to the crown centroid v_c (Eq. 4).
+//!
+//! Two additions for AHN densities, where a trunk is hit once or not at all:
+//! a lowest point without neighbours (n_avg undefined) is taken as a trunk
+//! hit on a vertical trunk when it lies within half the λ2 limit of the
+//! centreline; and above v_low the Eq. 3 trunk continues vertically to the
+//! height of the crown centroid, as the Eq. 4 trunk does.
 
 use glam::{Vec2, Vec3};
 
@@ -33,9 +39,9 @@ pub(super) struct Trunk {
     pub(super) points: Vec<Vec3>,
     /// The rule that placed it.
     pub(super) rule: TrunkRule,
-    /// λ1 in degrees (NaN when n_avg could not be formed).
+    /// λ1 in degrees.
     pub(super) lambda1_deg: f32,
-    /// λ2 (NaN when n_avg could not be formed).
+    /// λ2.
     pub(super) lambda2: f32,
 }
 
@@ -72,29 +78,52 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     let g_b = centre_xy.extend(ground_at(centre_xy));
     let v_c = tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32;
 
-    let n_avg = mean_direction(tree, v_low, params.trunk_sphere_m);
+    // A lowest point without neighbours is an isolated trunk hit below the
+    // crown (common at AHN densities); the paper's n_avg is undefined there,
+    // and the trunk is taken as vertical (§5.3: trunks grow nearly
+    // perpendicular to the ground).
+    let measured = mean_direction(tree, v_low, params.trunk_sphere_m);
+    let n_avg = measured.unwrap_or(Vec3::Z);
     let half_diagonal = (v_max.truncate() - centre_xy).length().max(f32::EPSILON);
     let lambda2 = (v_low.truncate() - centre_xy).length() / half_diagonal;
-    let lambda1_deg = n_avg.map_or(f32::NAN, |n| n.angle_between(Vec3::Z).to_degrees());
-    let eq3 = n_avg.filter(|n| {
-        lambda1_deg <= params.lambda1_max_deg && lambda2 <= params.lambda2_max && n.z > 1e-3
-    });
+    let lambda1_deg = n_avg.angle_between(Vec3::Z).to_degrees();
+    // Without a measured direction the point's position is the only
+    // evidence, so it has to sit twice as close to the centreline.
+    let lambda2_max = if measured.is_some() {
+        params.lambda2_max
+    } else {
+        params.lambda2_max * 0.5
+    };
+    let eq3 = (lambda1_deg <= params.lambda1_max_deg && lambda2 <= lambda2_max && n_avg.z > 1e-3)
+        .then_some(n_avg);
+    // The paper leaves the spacing of inserted points open. Half of r_p
+    // keeps each trunk point short of k trunk neighbours within r_p, so
+    // Algorithm 1's kNN pass links the trunk to the crown points around it
+    // instead of letting the trunk form a closed clique.
+    let spacing = params.neighbour_radius_m * 0.5;
     let (rule, points) = match eq3 {
         Some(n) => {
             // Eq. 3: v_t = v_low − n_avg·t, t = h / n_avg.z reaches the ground.
             let h = v_low.z - ground_at(v_low.truncate());
             let mut root = v_low - n * (h / n.z);
             root.z = ground_at(root.truncate());
-            (
-                TrunkRule::FromLowestPoint,
-                line(root, above(root, v_low, params.voxel_m), params.voxel_m),
-            )
+            let low = above(root, v_low, params.voxel_m);
+            let mut points = line(root, low, spacing);
+            // At AHN densities there are no further trunk hits above v_low,
+            // so the trunk continues to the crown's centre of mass as in
+            // Eq. 4; without it the skeleton would have to find its way up
+            // through the empty space under the crown.
+            if v_c.z > low.z + spacing {
+                let up = Vec3::new(low.x, low.y, v_c.z);
+                points.extend(line(low, up, spacing).into_iter().skip(1));
+            }
+            (TrunkRule::FromLowestPoint, points)
         }
         None => {
             // Eq. 4: v_t = v_c − (v_c − g_b)/‖v_c − g_b‖·t between g_b and v_c.
             (
                 TrunkRule::FromCrownCentre,
-                line(g_b, above(g_b, v_c, params.voxel_m), params.voxel_m),
+                line(g_b, above(g_b, v_c, params.voxel_m), spacing),
             )
         }
     };
@@ -107,8 +136,8 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
 }
 
 /// n_avg: the normalised mean of the unit directions from `v_low` to its
-/// neighbours within `radius_m`; `None` without neighbours or when the
-/// directions cancel.
+/// neighbours within `radius_m`; `None` without neighbours (or when the
+/// directions cancel).
 fn mean_direction(tree: &[Vec3], v_low: Vec3, radius_m: f32) -> Option<Vec3> {
     let index = PointIndex::new(tree);
     let sum: Vec3 = index
