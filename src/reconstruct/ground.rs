@@ -49,6 +49,10 @@ const CELL_M: f32 = 1.0;
 /// a tilted start plane does not lose real ground, tight at the end.
 const RESIDUAL_LIMITS_M: [f64; 4] = [2.0, 1.0, 0.5, 0.3];
 
+/// Fewest points for a cell to count as bare ground (AHN3 puts 10–30 in a
+/// 1 m cell of open ground).
+const BARE_CELL_MIN_POINTS: u32 = 5;
+
 /// Share of occupied grid cells that must agree with the fitted surface for
 /// it to be accepted as terrain. Around a tree most cells see ground; a
 /// segmented tree without ground has only its trunk cell near its lowest
@@ -79,6 +83,9 @@ pub struct Terrain {
     origin: Vec2,
     /// Number of occupied grid cells, and of those that agree with the surface.
     cells: (usize, usize),
+    /// Terrain cells that hold only ground: enough points, all within the
+    /// ground tolerance of the lowest.
+    bare_cells: usize,
 }
 
 impl Terrain {
@@ -115,6 +122,17 @@ impl Terrain {
         let (occupied, terrain) = self.cells;
         terrain as f32 / occupied.max(1) as f32
     }
+
+    /// True when the surface is ground rather than the underside of a
+    /// crown: it covers [`MIN_GROUND_CELL_SHARE`] of the clip, and a quarter
+    /// of its cells are bare (open ground around the tree; the bottom layer
+    /// of a crown always has foliage above its lowest points).
+    pub(crate) fn is_ground(&self) -> bool {
+        let (_, terrain) = self.cells;
+        f64::from(self.cell_share()) >= MIN_GROUND_CELL_SHARE
+            && self.bare_cells >= 3
+            && self.bare_cells * 4 >= terrain
+    }
 }
 
 /// A clip split into tree and ground points.
@@ -148,8 +166,8 @@ impl GroundSplit {
 /// use silva::reconstruct::ground::{split_ground, GroundMethod};
 ///
 /// // A 10 m × 10 m patch of flat ground and a 5 m pole in its middle.
-/// let mut pts: Vec<Vec3> = (0..400)
-///     .map(|i| Vec3::new((i % 20) as f32 * 0.5, (i / 20) as f32 * 0.5, 0.0))
+/// let mut pts: Vec<Vec3> = (0..1600)
+///     .map(|i| Vec3::new((i % 40) as f32 * 0.25, (i / 40) as f32 * 0.25, 0.0))
 ///     .collect();
 /// pts.extend((1..=20).map(|k| Vec3::new(5.1, 5.1, k as f32 * 0.25)));
 /// let split = split_ground(&PointCloud::from_points(DVec3::ZERO, pts));
@@ -171,8 +189,7 @@ pub fn split_ground(cloud: &PointCloud) -> GroundSplit {
             };
         }
     }
-    match fit_terrain(&cloud.points).filter(|t| f64::from(t.cell_share()) >= MIN_GROUND_CELL_SHARE)
-    {
+    match fit_terrain(&cloud.points).filter(Terrain::is_ground) {
         Some(terrain) => {
             let is_ground: Vec<bool> = cloud
                 .points
@@ -204,17 +221,29 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
     let origin = points
         .iter()
         .fold(Vec2::splat(f32::INFINITY), |o, p| o.min(p.truncate()));
-    let mut lowest: HashMap<(i32, i32), glam::Vec3> = HashMap::new();
+    // Per cell: the lowest point, the highest z and the point count.
+    let mut cells: HashMap<(i32, i32), (glam::Vec3, f32, u32)> = HashMap::new();
     for &p in points {
-        lowest
+        cells
             .entry(cell_of(origin, p.x, p.y))
-            .and_modify(|q| {
-                if p.z < q.z {
-                    *q = p;
+            .and_modify(|(low, high, n)| {
+                if p.z < low.z {
+                    *low = p;
                 }
+                *high = high.max(p.z);
+                *n += 1;
             })
-            .or_insert(p);
+            .or_insert((p, p.z, 1));
     }
+    let bare: std::collections::HashSet<(i32, i32)> = cells
+        .iter()
+        .filter(|(_, (low, high, n))| {
+            *n >= BARE_CELL_MIN_POINTS && high - low.z <= GROUND_TOLERANCE_M
+        })
+        .map(|(k, _)| *k)
+        .collect();
+    let lowest: HashMap<(i32, i32), glam::Vec3> =
+        cells.into_iter().map(|(k, (low, _, _))| (k, low)).collect();
     if lowest.len() < 3 {
         return None;
     }
@@ -244,8 +273,10 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         .filter(|(_, keep)| **keep)
         .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
         .collect();
+    let bare_cells = residual_m.keys().filter(|k| bare.contains(k)).count();
     Some(Terrain {
         plane,
+        bare_cells,
         cells: (candidates.len(), residual_m.len()),
         residual_m,
         origin,

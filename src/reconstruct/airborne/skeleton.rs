@@ -77,6 +77,9 @@ pub(super) fn skeleton_produce(
 /// skeleton by at least one graph hop, and crowns are a few dozen hops wide.
 const MAX_REATTACH_ROUNDS: usize = 200;
 
+/// A segment waiting in Q: (key bits, sequence, k, i, node of i).
+type QueueEntry = (u32, u64, u32, u32, u32);
+
 /// The state of Algorithm 2: visited flags, the tree T (as nodes) and the
 /// priority queue Q.
 struct Growth<'a> {
@@ -93,7 +96,7 @@ struct Growth<'a> {
     /// Entries (key bits, sequence, k, i, node of i). Keys are in [0, 1],
     /// where the bit pattern of a non-negative f32 orders like its value;
     /// the sequence number breaks ties in insertion order.
-    queue: BinaryHeap<Reverse<(u32, u64, u32, u32, u32)>>,
+    queue: BinaryHeap<Reverse<QueueEntry>>,
     sequence: u64,
 }
 
@@ -317,10 +320,18 @@ mod tests {
             vec![vec![1, 4], vec![0, 2, 4], vec![1, 3], vec![2], vec![0, 1]];
         let field = vec![Vec3::Z; 5];
         let produced = skeleton_produce(&points, &adjacency, &field, 0, 1, &Params::default());
+        // Point 4 lies behind the start; only re-attachment reaches it.
         assert_eq!(
             produced.nodes,
-            vec![(0, None), (1, Some(0)), (2, Some(1)), (3, Some(2))]
+            vec![
+                (0, None),
+                (1, Some(0)),
+                (2, Some(1)),
+                (3, Some(2)),
+                (4, Some(0))
+            ]
         );
-        assert_eq!(produced.visited, 4);
+        assert_eq!(produced.reached_by_algorithm2, 4);
+        assert_eq!(produced.visited, 5);
     }
 }

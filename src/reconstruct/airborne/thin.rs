@@ -9,10 +9,15 @@
 //! candidate skeleton points of the graph. On sparse airborne data most
 //! voxels are isolated and survive; on denser crowns thinning removes the
 //! bulk of the interior.
+//!
+//! [`contract`] then moves each candidate to the mean of the points around
+//! it, which §5.1 does not do; see `Params::contraction_radius_m`.
 
 use std::collections::HashMap;
 
 use glam::{IVec3, Vec3};
+
+use crate::spatial::PointIndex;
 
 /// Offsets of the 26 neighbours and the centre, indexed `(dx+1)·9 + (dy+1)·3
 /// + (dz+1)`; index 13 is the centre.
@@ -71,6 +76,27 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
         .into_iter()
         .filter(|(k, _)| black[k])
         .map(|(_, p)| p)
+        .collect()
+}
+
+/// One contraction step: each candidate moves to the mean of the tree
+/// points within `radius_m` of it (unchanged when `radius_m` is 0 or it has
+/// no such points). See `Params::contraction_radius_m`.
+pub(super) fn contract(candidates: &[Vec3], tree: &[Vec3], radius_m: f32) -> Vec<Vec3> {
+    if radius_m <= 0.0 {
+        return candidates.to_vec();
+    }
+    let index = PointIndex::new(tree);
+    candidates
+        .iter()
+        .map(|&c| {
+            let near = index.within(c, radius_m);
+            if near.is_empty() {
+                c
+            } else {
+                near.iter().map(|n| tree[n.index]).sum::<Vec3>() / near.len() as f32
+            }
+        })
         .collect()
 }
 
