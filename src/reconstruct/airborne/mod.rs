@@ -46,6 +46,10 @@ pub const MIN_TREE_POINTS: usize = 10;
 /// count as a whole tree; Hu et al. §6.2 export a model only above 85 %.
 const MIN_VISITED_SHARE: f32 = 0.85;
 
+/// How far below the 1st percentile of height a point may lie before it
+/// counts as a low outlier when there is no terrain (metres).
+const LOW_OUTLIER_M: f32 = 1.0;
+
 /// Smallest spread (standard deviation, metres) along the second and third
 /// principal axes for a cloud to be a volume rather than a line or a plane.
 const MIN_SPREAD_M: f32 = 0.05;
@@ -204,7 +208,7 @@ pub fn reconstruct(
     }
     check_volume(&split.tree.points)?;
 
-    let tree = &split.tree.points;
+    let tree = &without_low_outliers(&split, &mut notes);
     let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
     notes.push(trunk.note());
     let mut points = trunk.points.clone();
@@ -269,6 +273,29 @@ fn usable_points(cloud: &PointCloud) -> PointCloud {
             keep.iter().map(|&i| cloud.points[i]).collect(),
         )
     }
+}
+
+/// The tree points, without isolated returns far below the rest when there
+/// is no terrain to judge them by: the lowest point becomes the trunk base,
+/// so one multipath return a few metres under the ground would otherwise
+/// set the tree's height. Points more than [`LOW_OUTLIER_M`] below the 1st
+/// percentile of height are dropped.
+fn without_low_outliers(split: &GroundSplit, notes: &mut Vec<String>) -> Vec<Vec3> {
+    let points = &split.tree.points;
+    if split.terrain.is_some() {
+        return points.clone();
+    }
+    let mut heights: Vec<f32> = points.iter().map(|p| p.z).collect();
+    heights.sort_by(f32::total_cmp);
+    let floor = heights[heights.len() / 100] - LOW_OUTLIER_M;
+    let kept: Vec<Vec3> = points.iter().copied().filter(|p| p.z >= floor).collect();
+    if kept.len() < points.len() {
+        notes.push(format!(
+            "{} isolated low points ignored (more than {LOW_OUTLIER_M} m below the 1st percentile)",
+            points.len() - kept.len()
+        ));
+    }
+    kept
 }
 
 fn validate(p: &Params) -> Result<(), ReconstructError> {

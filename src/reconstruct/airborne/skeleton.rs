@@ -98,6 +98,9 @@ struct Growth<'a> {
     /// the sequence number breaks ties in insertion order.
     queue: BinaryHeap<Reverse<QueueEntry>>,
     sequence: u64,
+    /// Points that became skeleton nodes since the last re-attachment round:
+    /// only their neighbours can newly border the skeleton.
+    fresh: Vec<u32>,
 }
 
 impl<'a> Growth<'a> {
@@ -119,6 +122,7 @@ impl<'a> Growth<'a> {
             nodes: Vec::new(),
             queue: BinaryHeap::new(),
             sequence: 0,
+            fresh: Vec::new(),
         }
     }
 
@@ -132,6 +136,7 @@ impl<'a> Growth<'a> {
         self.nodes.push((j as u32, parent));
         self.visited[j] = true;
         self.node_of[j] = node;
+        self.fresh.push(j as u32);
         node
     }
 
@@ -188,8 +193,17 @@ impl<'a> Growth<'a> {
     /// or never visited) and is adjacent to one is attached to the nearest
     /// such node and grown from. False when no point could be attached.
     fn reattach(&mut self) -> bool {
+        let fresh = std::mem::take(&mut self.fresh);
+        let mut bordering: Vec<u32> = fresh
+            .iter()
+            .flat_map(|&i| self.adjacency[i as usize].iter().copied())
+            .filter(|&j| self.node_of[j as usize] == u32::MAX)
+            .collect();
+        bordering.sort_unstable();
+        bordering.dedup();
         let mut attached = false;
-        for j in 0..self.points.len() {
+        for j in bordering {
+            let j = j as usize;
             if self.node_of[j] != u32::MAX {
                 continue;
             }

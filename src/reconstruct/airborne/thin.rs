@@ -53,16 +53,19 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
         .map(|(k, (sum, n))| (k, sum / n as f32))
         .collect();
     voxels.sort_by_key(|(k, _)| (k.z, k.y, k.x));
-    let mut black: HashMap<IVec3, bool> = voxels.iter().map(|(k, _)| (*k, true)).collect();
+    let Some(mut black) = Occupancy::new(voxels.iter().map(|(k, _)| *k)) else {
+        // Absurd extents (hostile input): keep the downsampled voxels.
+        return voxels.into_iter().map(|(_, p)| p).collect();
+    };
     let masks = Masks::new();
     loop {
         let mut deleted = 0;
         for face in FACES {
             for (key, _) in &voxels {
-                if black[key] && !is_black(&black, *key + face) {
-                    let here = neighbourhood(&black, *key);
+                if black.get(*key) && !black.get(*key + face) {
+                    let here = black.neighbourhood(*key);
                     if masks.is_deletable(here) {
-                        black.insert(*key, false);
+                        black.set(*key, false);
                         deleted += 1;
                     }
                 }
@@ -74,9 +77,73 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
     }
     voxels
         .into_iter()
-        .filter(|(k, _)| black[k])
+        .filter(|(k, _)| black.get(*k))
         .map(|(_, p)| p)
         .collect()
+}
+
+/// Most cells of the dense occupancy grid (64 MB); a tree clip at 0.2 m
+/// needs well under a million.
+const MAX_GRID_CELLS: usize = 1 << 26;
+
+/// Black/white voxels in a dense grid over the occupied box: thinning looks
+/// up 27 neighbours per voxel and pass, which a hash map makes the slowest
+/// stage.
+struct Occupancy {
+    dims: IVec3,
+    black: Vec<bool>,
+}
+
+impl Occupancy {
+    /// The grid with `keys` (all non-negative) black; `None` when the box
+    /// would exceed [`MAX_GRID_CELLS`].
+    fn new(keys: impl Iterator<Item = IVec3> + Clone) -> Option<Self> {
+        let dims = keys.clone().fold(IVec3::ZERO, IVec3::max) + 1;
+        let cells = (dims.x as usize)
+            .checked_mul(dims.y as usize)?
+            .checked_mul(dims.z as usize)?;
+        if cells > MAX_GRID_CELLS {
+            return None;
+        }
+        let mut grid = Self {
+            dims,
+            black: vec![false; cells],
+        };
+        for k in keys {
+            grid.set(k, true);
+        }
+        Some(grid)
+    }
+
+    fn index(&self, k: IVec3) -> Option<usize> {
+        let inside = k.cmpge(IVec3::ZERO).all() && k.cmplt(self.dims).all();
+        inside.then(|| {
+            (k.z as usize * self.dims.y as usize + k.y as usize) * self.dims.x as usize
+                + k.x as usize
+        })
+    }
+
+    fn get(&self, k: IVec3) -> bool {
+        self.index(k).is_some_and(|i| self.black[i])
+    }
+
+    fn set(&mut self, k: IVec3, value: bool) {
+        if let Some(i) = self.index(k) {
+            self.black[i] = value;
+        }
+    }
+
+    /// The 3×3×3 neighbourhood of `k` as a 27-bit occupancy mask (centre
+    /// excluded).
+    fn neighbourhood(&self, k: IVec3) -> u32 {
+        let mut mask = 0u32;
+        for (i, offset) in offsets().enumerate() {
+            if i != CENTRE && self.get(k + offset) {
+                mask |= 1 << i;
+            }
+        }
+        mask
+    }
 }
 
 /// One contraction step: each candidate moves to the mean of the tree
@@ -98,21 +165,6 @@ pub(super) fn contract(candidates: &[Vec3], tree: &[Vec3], radius_m: f32) -> Vec
             }
         })
         .collect()
-}
-
-fn is_black(black: &HashMap<IVec3, bool>, key: IVec3) -> bool {
-    black.get(&key).copied().unwrap_or(false)
-}
-
-/// The 3×3×3 neighbourhood of `key` as a 27-bit occupancy mask.
-fn neighbourhood(black: &HashMap<IVec3, bool>, key: IVec3) -> u32 {
-    let mut mask = 0u32;
-    for (i, offset) in offsets().enumerate() {
-        if i != CENTRE && is_black(black, key + offset) {
-            mask |= 1 << i;
-        }
-    }
-    mask
 }
 
 fn offsets() -> impl Iterator<Item = IVec3> {
