@@ -24,8 +24,10 @@ use serde::{Deserialize, Serialize};
 use crate::cloud::PointCloud;
 use crate::skeleton::Skeleton;
 
+pub mod airborne;
 pub mod dense;
 mod error;
+pub mod ground;
 pub mod metrics;
 pub mod radii;
 
@@ -65,6 +67,8 @@ pub struct Options {
     pub mode: Mode,
     /// Settings of the dense pipeline.
     pub dense: dense::Params,
+    /// Settings of the airborne pipeline.
+    pub airborne: airborne::Params,
     /// Settings of the shared radius stage.
     pub radii: radii::Params,
     /// Thresholds of the automatic mode choice.
@@ -137,7 +141,16 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
             let out = dense::reconstruct(cloud, &opts.dense)?;
             (out.skeleton, out.cloud, out.notes)
         }
-        Mode::Airborne => return Err(ReconstructError::PipelineUnavailable("airborne")),
+        Mode::Airborne => {
+            let out = airborne::reconstruct(cloud, &opts.airborne)?;
+            // The shared radius stage and the metrics see the tree without
+            // its ground, relative to the skeleton's anchor like the dense
+            // pipeline's output.
+            let tree = ground::split_ground(cloud)
+                .tree
+                .rebased(out.skeleton.anchor().origin);
+            (out.skeleton, tree, out.notes)
+        }
     };
     let crown = metrics::Crown::measure(&skeleton, &tree_cloud);
     let trunk = radii::assign_radii(&mut skeleton, &tree_cloud, &crown, &opts.radii);
