@@ -47,7 +47,7 @@
 //! let back = ChainCode::decompress(&bytes, &Limits::default()).unwrap();
 //! let decoded = chaincode::decode(&back).unwrap();
 //! assert_eq!(decoded.len(), tree.len());
-//! let bound = code.error_bound_m();
+//! let bound = code.error_bound_m() as f32 + 1e-6;
 //! assert!(decoded.position(NodeId::from_index(2)).distance(tree.position(top)) <= bound);
 //!
 //! // Level of detail: drop the lateral thinner than 10 cm.
