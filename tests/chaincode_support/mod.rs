@@ -64,8 +64,9 @@ pub fn random_skeleton(seed: u64, nodes: usize) -> Skeleton {
 }
 
 /// A smooth tree of roughly `target` internodes: a trunk and recursive
-/// laterals up to order 4, internodes of about 0.2 m, radii by the pipe
-/// model (`r = 4 mm · √tips`), main extension first.
+/// laterals up to order 4, internodes of 0.2 m ± 5 % (the paper's trees have
+/// fixed-length internodes), axes bending by about 7° per internode, radii
+/// by the pipe model (`r = 4 mm · √tips`), main extension first.
 pub fn botanical_tree(seed: u64, target: usize) -> Skeleton {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut s = Skeleton::new(anchor(), 0.0);
@@ -80,7 +81,7 @@ pub fn botanical_tree(seed: u64, target: usize) -> Skeleton {
             }
             let bend = unit(&mut rng) * 0.12 + Vec3::Z * 0.03;
             dir = (dir + bend).normalize();
-            let length = 0.2 * rng.random_range(0.8..1.2);
+            let length = 0.2 * rng.random_range(0.95..1.05);
             let next = s.add_child(node, s.position(node) + dir * length, 0.0);
             let remaining = count - k;
             if order < 4 && remaining > 3 && rng.random_bool(0.35) {
