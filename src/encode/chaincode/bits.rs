@@ -98,18 +98,22 @@ impl<'a> BitReader<'a> {
         }
         let byte = (self.pos / 8) as usize;
         let shift = (self.pos % 8) as u32;
-        // Five bytes hold any 32-bit read at any bit offset.
-        let mut window = [0u8; 8];
-        let avail = self.bytes.len().saturating_sub(byte).min(5);
-        if avail > 0 {
-            window[..avail].copy_from_slice(&self.bytes[byte..byte + avail]);
-        }
+        // Eight bytes hold any 32-bit read at any bit offset; near the end,
+        // the missing bytes read as zeros.
+        let word = match self.bytes.get(byte..byte + 8) {
+            Some(b) => u64::from_be_bytes(b.try_into().expect("eight bytes")),
+            None => {
+                let mut window = [0u8; 8];
+                let tail = self.bytes.get(byte..).unwrap_or(&[]);
+                window[..tail.len()].copy_from_slice(tail);
+                u64::from_be_bytes(window)
+            }
+        };
         let end_bit = self.pos + u64::from(count);
         if end_bit > self.bytes.len() as u64 * 8 {
             self.overrun = true;
         }
         self.pos = end_bit;
-        let word = u64::from_be_bytes(window);
         (word << shift) >> (64 - count)
     }
 

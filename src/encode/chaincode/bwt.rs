@@ -27,25 +27,24 @@ pub fn bwt_forward(symbols: &[u8], alphabet: usize) -> (Vec<u8>, usize) {
     (last, primary)
 }
 
-/// Inverts [`bwt_forward`]. Returns `None` if `primary` is out of range or a
-/// symbol is not below `alphabet`. Any other input yields some string of the
+/// Inverts [`bwt_forward`]. Returns `None` if `primary` is out of range, a
+/// symbol is not below `alphabet` or the alphabet exceeds 255 symbols. Any other input yields some string of the
 /// same length (possibly not the original): the walk is over a permutation,
 /// so it always terminates.
 pub fn bwt_inverse(last: &[u8], primary: usize, alphabet: usize) -> Option<Vec<u8>> {
     let n = last.len();
-    if primary > n {
+    if primary > n || alphabet > 255 || n >= u32::MAX as usize {
         return None;
     }
-    // Row `primary` of the full last column holds the end marker.
-    let at = |row: usize| -> Option<u8> {
-        match row.cmp(&primary) {
-            std::cmp::Ordering::Less => Some(last[row]),
-            std::cmp::Ordering::Equal => None,
-            std::cmp::Ordering::Greater => Some(last[row - 1]),
-        }
-    };
+    // The full last column, with the end marker (any value ≥ alphabet) in
+    // row `primary`.
+    let marker = alphabet as u8;
+    let mut column = Vec::with_capacity(n + 1);
+    column.extend_from_slice(&last[..primary]);
+    column.push(marker);
+    column.extend_from_slice(&last[primary..]);
     // First row of each symbol in the sorted first column (marker in row 0).
-    let mut start = vec![0usize; alphabet + 1];
+    let mut start = vec![0u32; alphabet + 1];
     for &s in last {
         let s = usize::from(s);
         if s >= alphabet {
@@ -57,28 +56,26 @@ pub fn bwt_inverse(last: &[u8], primary: usize, alphabet: usize) -> Option<Vec<u
     for s in 1..=alphabet {
         start[s] += start[s - 1];
     }
-    // Last-to-first mapping.
+    // Last-to-first mapping; the marker's row maps to row 0.
     let mut lf = vec![0u32; n + 1];
-    let mut seen = start;
-    for (row, slot) in lf.iter_mut().enumerate() {
-        *slot = match at(row) {
-            Some(s) => {
-                let s = usize::from(s);
-                seen[s] += 1;
-                (seen[s] - 1) as u32
-            }
-            None => 0,
-        };
+    let mut next = start;
+    for (slot, &s) in lf.iter_mut().zip(&column) {
+        if s != marker {
+            let s = usize::from(s);
+            *slot = next[s];
+            next[s] += 1;
+        }
     }
     // Row 0 starts with the marker; its last symbol ends the string.
     let mut out = vec![0u8; n];
     let mut row = 0usize;
     for slot in out.iter_mut().rev() {
-        match at(row) {
-            Some(s) => *slot = s,
+        let s = column[row];
+        if s == marker {
             // A corrupt key or column closed the cycle early.
-            None => return None,
+            return None;
         }
+        *slot = s;
         row = lf[row] as usize;
     }
     Some(out)

@@ -25,16 +25,19 @@ pub fn mtf_forward(symbols: &[u8], alphabet: usize) -> Vec<u8> {
 /// Inverts [`mtf_forward`]; `None` if an index is not below `alphabet`.
 pub fn mtf_inverse(indices: &[u8], alphabet: usize) -> Option<Vec<u8>> {
     let mut table = initial_table(alphabet);
-    let mut out = Vec::with_capacity(indices.len());
-    for &i in indices {
-        let i = usize::from(i);
-        if i >= alphabet {
-            return None;
+    let mut out = vec![0u8; indices.len()];
+    for (slot, &i) in out.iter_mut().zip(indices) {
+        // After the BWT most indices are 0: the table does not change.
+        if i != 0 {
+            let i = usize::from(i);
+            if i >= alphabet {
+                return None;
+            }
+            let s = table[i];
+            table.copy_within(0..i, 1);
+            table[0] = s;
         }
-        let s = table[i];
-        table.copy_within(0..i, 1);
-        table[0] = s;
-        out.push(s);
+        *slot = table[0];
     }
     Some(out)
 }
