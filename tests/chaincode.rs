@@ -6,8 +6,8 @@ mod chaincode_support;
 use chaincode_support::{botanical_tree, random_skeleton};
 use proptest::prelude::*;
 use silva::encode::chaincode::{
-    self, ChainCode, ChainError, ChainOptions, Limits, Resolution, decode, encode, encode_order,
-    prune_like_lod, reduce_lod,
+    self, ChainCode, ChainError, ChainOptions, Limits, Resolution, Voxelisation, decode, encode,
+    encode_order, prune_like_lod, reduce_lod,
 };
 use silva::{NodeId, Skeleton};
 
@@ -17,7 +17,7 @@ const F32_SLACK_M: f64 = 2e-5;
 fn opts(resolution: Resolution) -> ChainOptions {
     ChainOptions {
         resolution,
-        radius_step_m: 0.001,
+        ..ChainOptions::default()
     }
 }
 
@@ -72,6 +72,12 @@ fn assert_same_shape(a: &Skeleton, b: &Skeleton, bound: f64) {
 }
 
 fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
+    let nearest = ChainOptions {
+        voxelisation: Voxelisation::Nearest,
+        ..opts(resolution)
+    };
+    let code = encode(s, &nearest).unwrap();
+    assert_faithful(s, &code, &decode(&code).unwrap());
     let code = encode(s, &opts(resolution)).unwrap();
     let decoded = decode(&code).unwrap();
     assert_faithful(s, &code, &decoded);
@@ -177,6 +183,26 @@ fn botanical_trees_round_trip_at_the_papers_resolutions() {
         assert!(s.internode_count() > 500);
         for r in [3.0, 5.0, 10.0] {
             round_trip_all_forms(&s, Resolution::PerInternode(r));
+        }
+    }
+}
+
+#[test]
+fn synthetic_species_round_trip() {
+    use silva::synth::{Species, TreeParams, generate};
+    for species in Species::ALL {
+        let s = generate(&TreeParams::preset(species), 3, chaincode_support::anchor());
+        for r in [3.0, 5.0, 10.0] {
+            round_trip_all_forms(&s, Resolution::PerInternode(r));
+        }
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        for t in chaincode::lod_thresholds(&code, chaincode::LOD_LEVELS) {
+            let lod = decode(&reduce_lod(&code, t)).unwrap();
+            assert!(lod.len() < s.len());
+            assert_eq!(
+                lod,
+                prune_like_lod(&decode(&code).unwrap(), t).canonical_in_code_order()
+            );
         }
     }
 }

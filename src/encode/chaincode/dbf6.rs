@@ -25,7 +25,7 @@ use glam::DVec3;
 use super::radii::quantise;
 use super::{
     ChainCode, ChainError, ChainHeader, ChainOptions, END, FORK, Limits, MOVE_NEG_X, MOVE_POS_X,
-    Resolution, TIP,
+    Resolution, TIP, Voxelisation,
 };
 use crate::skeleton::{Node, NodeId, Skeleton};
 
@@ -63,9 +63,10 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
     }
     let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
     let root = skeleton.position(NodeId::ROOT);
-    let voxels = voxelise(skeleton, voxel_size_m)?;
+    let targets = scaled_positions(skeleton, voxel_size_m)?;
     let order = encode_order(skeleton);
 
+    let mut voxels = vec![[0i32; 3]; skeleton.len()];
     let mut symbols = Vec::new();
     let mut radii_q = Vec::with_capacity(order.len());
     radii_q.push(quantise(skeleton.radius(NodeId::ROOT), step)?);
@@ -73,14 +74,17 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
     symbols.extend(std::iter::repeat_n(FORK, root_kids.saturating_sub(1)));
     for &node in &order[1..] {
         let parent = skeleton.parent(node).expect("only the root lacks a parent");
-        let step_v = sub(voxels[node.index()], voxels[parent.index()]);
         let is_main = skeleton.children(parent)[0] == node;
-        let correction = match skeleton.parent(parent) {
-            Some(grand) if is_main => {
-                sub(step_v, sub(voxels[parent.index()], voxels[grand.index()]))
-            }
-            _ => step_v,
+        // Differential prediction: a main extension repeats the previous
+        // internode's step; a branch's first internode is coded in full.
+        let predicted_step = match skeleton.parent(parent) {
+            Some(grand) if is_main => sub(voxels[parent.index()], voxels[grand.index()]),
+            _ => [0; 3],
         };
+        let predicted = add(voxels[parent.index()], predicted_step).expect("within 2^29");
+        let v = choose_voxel(targets[node.index()], predicted, opts.voxelisation);
+        voxels[node.index()] = v;
+        let correction = sub(v, predicted);
         let moves: u32 = correction.iter().map(|c| c.unsigned_abs()).sum();
         let needed = symbols.len() + moves as usize + skeleton.children(node).len() + 2;
         if needed > limits.max_symbols {
@@ -279,22 +283,55 @@ fn voxel_size(skeleton: &Skeleton, resolution: Resolution) -> Result<f64, ChainE
     }
 }
 
-/// Eq. 1: voxel of every node relative to the root, rounding half away from
-/// zero so that voxel `(0,0,0)` is centred on the root.
-fn voxelise(skeleton: &Skeleton, d: f64) -> Result<Vec<[i32; 3]>, ChainError> {
+/// Node positions relative to the root in voxel units, checked to stay
+/// within ±2^28 voxels.
+fn scaled_positions(skeleton: &Skeleton, d: f64) -> Result<Vec<DVec3>, ChainError> {
     let root = skeleton.position(NodeId::ROOT).as_dvec3();
     skeleton
         .nodes()
         .iter()
         .map(|n| {
-            let rel = (n.position.as_dvec3() - root) / d;
-            let v = rel.round();
-            if v.abs().max_element() > MAX_VOXEL {
+            let x = (n.position.as_dvec3() - root) / d;
+            if x.abs().max_element() > MAX_VOXEL {
                 return Err(ChainError::TooFine { voxel_size_m: d });
             }
-            Ok([v.x as i32, v.y as i32, v.z as i32])
+            Ok(x)
         })
         .collect()
+}
+
+/// The voxel for a node at `x` (voxel units from the root), given the voxel
+/// the differential prediction points at.
+fn choose_voxel(x: DVec3, predicted: [i32; 3], mode: Voxelisation) -> [i32; 3] {
+    // Eq. 1, rtz(x + sgn(x)/2): rounding half away from zero, so voxel
+    // (0,0,0) is centred on the root. Its centre is within √3/2 of x.
+    let r = x.round();
+    let nearest = [r.x as i32, r.y as i32, r.z as i32];
+    if mode == Voxelisation::Nearest {
+        return nearest;
+    }
+    let cost = |v: [i32; 3]| {
+        let moves: u32 = sub(v, predicted).iter().map(|c| c.unsigned_abs()).sum();
+        let c = DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
+        (moves, c.distance_squared(x))
+    };
+    // Every voxel whose centre is within √3/2 of x: at most two per axis.
+    let reach = 3f64.sqrt() / 2.0;
+    let lo = (x - reach).ceil();
+    let hi = (x + reach).floor();
+    let mut best = (nearest, cost(nearest));
+    for i in lo.x as i32..=hi.x as i32 {
+        for j in lo.y as i32..=hi.y as i32 {
+            for k in lo.z as i32..=hi.z as i32 {
+                let v = [i, j, k];
+                let c = cost(v);
+                if c.1 <= 0.75 && c < best.1 {
+                    best = (v, c);
+                }
+            }
+        }
+    }
+    best.0
 }
 
 /// Appends the moves of a correction, clustered by axis (x, then y, then z)
@@ -356,7 +393,7 @@ mod tests {
     fn reproduces_the_papers_differential_code() {
         let opts = ChainOptions {
             resolution: Resolution::VoxelSize(1.0),
-            radius_step_m: 0.001,
+            ..ChainOptions::default()
         };
         let code = encode(&paper_tree(), &opts).unwrap();
         // Fig. 6 of the paper.
@@ -385,7 +422,7 @@ mod tests {
         s.add_child(c, Vec3::new(0.0, 0.0, 3.0), 0.1);
         let opts = ChainOptions {
             resolution: Resolution::VoxelSize(1.0),
-            radius_step_m: 0.001,
+            ..ChainOptions::default()
         };
         let code = encode(&s, &opts).unwrap();
         assert_eq!(as_text(&code.symbols), "266036857073717");
@@ -431,16 +468,25 @@ mod tests {
     fn voxel_rounding_is_half_away_from_zero() {
         let mut s = Skeleton::new(Anchor::default(), 0.1);
         s.add_child(NodeId::ROOT, Vec3::new(0.5, -0.5, 1.49), 0.1);
-        let v = voxelise(&s, 1.0).unwrap();
-        assert_eq!(v[1], [1, -1, 1]);
+        let x = scaled_positions(&s, 1.0).unwrap();
+        let v = choose_voxel(x[1], [0; 3], Voxelisation::Nearest);
+        assert_eq!(v, [1, -1, 1]);
         let code = encode(
             &s,
             &ChainOptions {
                 resolution: Resolution::VoxelSize(1.0),
+                voxelisation: Voxelisation::Nearest,
                 ..Default::default()
             },
         )
         .unwrap();
-        assert_eq!(decoded_position(&code, v[1]), Vec3::new(1.0, -1.0, 1.0));
+        assert_eq!(decoded_position(&code, v), Vec3::new(1.0, -1.0, 1.0));
+        assert_eq!(decode(&code).unwrap().position(NodeId::from_index(1)), Vec3::new(1.0, -1.0, 1.0));
+
+        // The predictive choice may take another voxel within the bound.
+        let v = choose_voxel(x[1], [0; 3], Voxelisation::Predictive);
+        assert_eq!(v, [0, 0, 1]);
+        let c = DVec3::new(0.0, 0.0, 1.0);
+        assert!(c.distance(x[1]) <= 3f64.sqrt() / 2.0);
     }
 }

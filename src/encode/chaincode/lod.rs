@@ -276,7 +276,7 @@ mod tests {
     fn prunes_thin_laterals_and_what_they_carry() {
         let opts = ChainOptions {
             resolution: Resolution::VoxelSize(1.0),
-            radius_step_m: 0.001,
+            ..ChainOptions::default()
         };
         let code = encode(&tree(), &opts).unwrap();
         assert_eq!(as_text(&code.symbols), "226685700638733717");

@@ -11,8 +11,10 @@
 //!
 //! # In short
 //! - **Implicit voxelisation.** Node positions, taken relative to the root,
-//!   are rounded to the centres of cubic voxels of edge `d`
-//!   (Eq. 1: `v = rtz(p/d + sgn(p)/2)`, i.e. rounding half away from zero).
+//!   are snapped to the centres of cubic voxels of edge `d`: the containing
+//!   voxel (Eq. 1: `v = rtz(p/d + sgn(p)/2)`, rounding half away from zero)
+//!   or, by default, whichever voxel within `√3·d/2` the prediction reaches
+//!   with the fewest moves ([`Voxelisation`]).
 //!   With [`Resolution::PerInternode`]`(r)`, `d = l̄ / r` where `l̄` is the
 //!   skeleton's mean internode length (Eq. 2 with the paper's fixed internode
 //!   length replaced by the mean); [`Resolution::VoxelSize`] sets `d` directly.
@@ -75,7 +77,7 @@ pub use interpolative::{bic_decode, bic_encode};
 pub use lod::{lod_thresholds, prune_like_lod, reduce_lod};
 pub use mtf::{mtf_forward, mtf_inverse};
 pub use container::{MAGIC, VERSION, is_chain_code};
-pub use stats::{ChainStats, LOD_LEVELS, LodStats, stats};
+pub use stats::{ChainStats, LOD_LEVELS, LodStats, stats, stats_with};
 
 /// Move one voxel in +x.
 pub const MOVE_POS_X: u8 = 0;
@@ -111,21 +113,41 @@ pub enum Resolution {
     VoxelSize(f64),
 }
 
+/// How the encoder picks each node's voxel. Both keep every decoded node
+/// within `√3·d/2` of its original position.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Voxelisation {
+    /// Eq. 1: the voxel containing the node, whose centre is the nearest;
+    /// the smallest mean error.
+    Nearest,
+    /// Among all voxels whose centre lies within `√3·d/2` of the node, the
+    /// one nearest the predicted voxel (fewest correction moves), ties going
+    /// to the nearer centre. The paper's "optimizing chain code generation
+    /// for increased compressibility while maintaining control over the
+    /// reconstruction error": a shorter code, the same bound, a larger mean
+    /// error.
+    Predictive,
+}
+
 /// Encoder settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChainOptions {
     /// Voxel size choice; the paper's default is `r = 5`.
     pub resolution: Resolution,
+    /// Voxel choice per node.
+    pub voxelisation: Voxelisation,
     /// Radius quantisation step in metres: radii are stored as
     /// `round(radius_m / radius_step_m)`, so each is within half a step.
     pub radius_step_m: f32,
 }
 
 impl Default for ChainOptions {
-    /// `r = 5` and 1 mm radius steps (radii within ±0.5 mm).
+    /// `r = 5`, predictive voxels and 1 mm radius steps (radii within
+    /// ±0.5 mm).
     fn default() -> Self {
         Self {
             resolution: Resolution::PerInternode(5.0),
+            voxelisation: Voxelisation::Predictive,
             radius_step_m: 0.001,
         }
     }

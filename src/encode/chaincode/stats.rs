@@ -20,7 +20,7 @@ pub const LOD_LEVELS: usize = 4;
 /// Sizes and error of one skeleton's chain code at one resolution.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChainStats {
-    /// The resolution `r`.
+    /// The resolution `r` (NaN when a voxel size was given).
     pub resolution: f32,
     /// The voxel size `d = l̄ / r`, metres.
     pub voxel_size_m: f64,
@@ -38,6 +38,8 @@ pub struct ChainStats {
     pub bytes_per_internode: f64,
     /// Largest distance between a decoded node and its original, metres.
     pub max_error_m: f64,
+    /// Mean distance between a decoded node and its original, metres.
+    pub mean_error_m: f64,
     /// The guaranteed bound `√3·d/2`, metres.
     pub error_bound_m: f64,
     /// Reduced levels of detail at the thresholds of [`lod_thresholds`].
@@ -57,25 +59,40 @@ pub struct LodStats {
     pub bytes_interpolative: usize,
 }
 
-/// Encodes `skeleton` at resolution `r` (1 mm radius steps) and measures
-/// every form, the node error and the LOD levels.
+/// Encodes `skeleton` at resolution `r` with the default options (predictive
+/// voxels, 1 mm radius steps) and measures every form, the node error and
+/// the LOD levels.
 pub fn stats(skeleton: &Skeleton, resolution: f32) -> Result<ChainStats, ChainError> {
-    let opts = ChainOptions {
-        resolution: Resolution::PerInternode(resolution),
-        ..ChainOptions::default()
+    stats_with(
+        skeleton,
+        &ChainOptions {
+            resolution: Resolution::PerInternode(resolution),
+            ..ChainOptions::default()
+        },
+    )
+}
+
+/// [`stats`] with any encoder options.
+pub fn stats_with(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainStats, ChainError> {
+    let resolution = match opts.resolution {
+        Resolution::PerInternode(r) => r,
+        Resolution::VoxelSize(_) => f32::NAN,
     };
+    let opts = *opts;
     let code = encode(skeleton, &opts)?;
     let binary = code.to_bytes();
     let compressed = code.compress();
     let decoded = decode(&code)?;
-    let max_error_m = encode_order(skeleton)
+    let errors: Vec<f64> = encode_order(skeleton)
         .iter()
         .enumerate()
         .map(|(i, &orig)| {
             let back = decoded.position(NodeId::from_index(i)).as_dvec3();
             back.distance(skeleton.position(orig).as_dvec3())
         })
-        .fold(0.0, f64::max);
+        .collect();
+    let max_error_m = errors.iter().copied().fold(0.0, f64::max);
+    let mean_error_m = errors.iter().sum::<f64>() / errors.len() as f64;
     let internodes = skeleton.internode_count();
     let lod = lod_thresholds(&code, LOD_LEVELS)
         .into_iter()
@@ -91,6 +108,7 @@ pub fn stats(skeleton: &Skeleton, resolution: f32) -> Result<ChainStats, ChainEr
         bytes_interpolative: compressed.len(),
         bytes_per_internode: compressed.len() as f64 / internodes.max(1) as f64,
         max_error_m,
+        mean_error_m,
         error_bound_m: code.error_bound_m(),
         lod,
     })
