@@ -30,9 +30,7 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
-use super::{
-    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf,
-};
+use super::{ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf};
 use crate::skeleton::Anchor;
 use glam::{DVec3, Vec3};
 
@@ -72,7 +70,9 @@ impl ChainCode {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
         if kind != KIND_PLAIN {
-            return Err(ChainError::Malformed("not a plain chain code; use decompress"));
+            return Err(ChainError::Malformed(
+                "not a plain chain code; use decompress",
+            ));
         }
         let packed = cur.take(n_symbols.div_ceil(2))?;
         let mut symbols = Vec::with_capacity(n_symbols);
@@ -135,7 +135,9 @@ impl ChainCode {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
         if kind != KIND_INTERPOLATIVE {
-            return Err(ChainError::Malformed("not a compressed chain code; use from_bytes"));
+            return Err(ChainError::Malformed(
+                "not a compressed chain code; use from_bytes",
+            ));
         }
         let primary = usize::try_from(cur.varint()?)
             .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
@@ -151,16 +153,20 @@ impl ChainCode {
 
         let mut r = BitReader::new(bit_bytes);
         let code_sums = interpolative::decode_from(&mut r, n_symbols, code_last, MAX_SYMBOL_GAP)
-            .ok_or(ChainError::Malformed("symbol sums inconsistent with their count"))?;
+            .ok_or(ChainError::Malformed(
+                "symbol sums inconsistent with their count",
+            ))?;
         let indices: Vec<u8> = differences(&code_sums).map(|g| g as u8).collect();
         let last = mtf::mtf_inverse(&indices, ALPHABET)
             .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
-        let symbols = bwt::bwt_inverse(&last, primary, ALPHABET)
-            .ok_or(ChainError::Malformed("BWT key does not invert the transform"))?;
+        let symbols = bwt::bwt_inverse(&last, primary, ALPHABET).ok_or(ChainError::Malformed(
+            "BWT key does not invert the transform",
+        ))?;
         let scan = lod::scan(&symbols, n_nodes)?;
 
-        let radius_sums = interpolative::decode_from(&mut r, n_nodes, radius_last, max_gap)
-            .ok_or(ChainError::Malformed("radius sums inconsistent with their count"))?;
+        let radius_sums = interpolative::decode_from(&mut r, n_nodes, radius_last, max_gap).ok_or(
+            ChainError::Malformed("radius sums inconsistent with their count"),
+        )?;
         if r.overrun() {
             return Err(ChainError::Truncated);
         }
@@ -183,7 +189,11 @@ impl ChainCode {
         out.push(VERSION);
         out.push(kind);
         let flags = if h.anchor.crs.is_some() { FLAG_CRS } else { 0 }
-            | if h.resolution.is_some() { FLAG_RESOLUTION } else { 0 };
+            | if h.resolution.is_some() {
+                FLAG_RESOLUTION
+            } else {
+                0
+            };
         out.push(flags);
         out.extend_from_slice(&h.voxel_size_m.to_le_bytes());
         out.extend_from_slice(&h.radius_step_m.to_le_bytes());
@@ -243,7 +253,8 @@ fn read_header(
             return Err(ChainError::Malformed("CRS longer than the limit"));
         }
         let raw = cur.take(len as usize)?;
-        let text = std::str::from_utf8(raw).map_err(|_| ChainError::Malformed("CRS is not UTF-8"))?;
+        let text =
+            std::str::from_utf8(raw).map_err(|_| ChainError::Malformed("CRS is not UTF-8"))?;
         Some(text.to_owned())
     } else {
         None

@@ -448,17 +448,17 @@ mod tests {
         let mut bad = code.clone();
         bad.symbols = vec![2, 8];
         bad.radii_q = vec![1, 1];
-        assert!(matches!(
-            decode(&bad),
-            Err(ChainError::Unterminated { .. })
-        ));
+        assert!(matches!(decode(&bad), Err(ChainError::Unterminated { .. })));
         bad.symbols = vec![2, 7, 2];
         assert!(matches!(
             decode(&bad),
             Err(ChainError::TrailingSymbols { count: 1 })
         ));
         bad.symbols = vec![9, 7];
-        assert!(matches!(decode(&bad), Err(ChainError::InvalidSymbol { .. })));
+        assert!(matches!(
+            decode(&bad),
+            Err(ChainError::InvalidSymbol { .. })
+        ));
         bad.symbols = vec![2, 7];
         bad.radii_q = vec![1];
         assert!(matches!(decode(&bad), Err(ChainError::RadiiCount { .. })));
@@ -481,7 +481,10 @@ mod tests {
         )
         .unwrap();
         assert_eq!(decoded_position(&code, v), Vec3::new(1.0, -1.0, 1.0));
-        assert_eq!(decode(&code).unwrap().position(NodeId::from_index(1)), Vec3::new(1.0, -1.0, 1.0));
+        assert_eq!(
+            decode(&code).unwrap().position(NodeId::from_index(1)),
+            Vec3::new(1.0, -1.0, 1.0)
+        );
 
         // The predictive choice may take another voxel within the bound.
         let v = choose_voxel(x[1], [0; 3], Voxelisation::Predictive);

@@ -151,7 +151,11 @@ fn write_centred(w: &mut BitWriter, v: u64, size: u64) {
     let k = 63 - size.leading_zeros();
     let short = (2u64 << k) - size;
     let shift = (size - short) / 2;
-    let x = if v >= shift { v - shift } else { v + size - shift };
+    let x = if v >= shift {
+        v - shift
+    } else {
+        v + size - shift
+    };
     if x < short {
         w.write(x, k);
     } else {

@@ -50,7 +50,10 @@ impl Scan {
     /// Number of nodes on each branch, in decoding order (the trunk counts
     /// the root). Branches are contiguous in decoding order.
     pub(crate) fn branch_lengths(&self) -> Vec<usize> {
-        self.branches.iter().map(|b| b.nodes.1 - b.nodes.0).collect()
+        self.branches
+            .iter()
+            .map(|b| b.nodes.1 - b.nodes.0)
+            .collect()
     }
 }
 

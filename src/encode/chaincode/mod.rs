@@ -72,11 +72,11 @@ use glam::Vec3;
 use crate::skeleton::{Anchor, SkeletonError};
 
 pub use bwt::{bwt_forward, bwt_inverse};
+pub use container::{MAGIC, VERSION, is_chain_code};
 pub use dbf6::{decode, encode, encode_order};
 pub use interpolative::{bic_decode, bic_encode};
 pub use lod::{lod_thresholds, prune_like_lod, reduce_lod};
 pub use mtf::{mtf_forward, mtf_inverse};
-pub use container::{MAGIC, VERSION, is_chain_code};
 pub use stats::{ChainStats, LOD_LEVELS, LodStats, stats, stats_with};
 
 /// Move one voxel in +x.
@@ -189,7 +189,11 @@ pub struct ChainCode {
 
 impl ChainCode {
     /// Checks and assembles a code from its parts.
-    pub fn new(header: ChainHeader, symbols: Vec<u8>, radii_q: Vec<u32>) -> Result<Self, ChainError> {
+    pub fn new(
+        header: ChainHeader,
+        symbols: Vec<u8>,
+        radii_q: Vec<u32>,
+    ) -> Result<Self, ChainError> {
         header.validate()?;
         lod::scan(&symbols, radii_q.len())?;
         Ok(Self {

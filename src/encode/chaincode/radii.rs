@@ -22,10 +22,7 @@ pub(crate) fn quantise(radius_m: f32, step_m: f32) -> Result<u32, ChainError> {
     if q.is_finite() && (0.0..=MAX_Q as f64).contains(&q) {
         Ok(q as u32)
     } else {
-        Err(ChainError::RadiusOutOfRange {
-            radius_m,
-            step_m,
-        })
+        Err(ChainError::RadiusOutOfRange { radius_m, step_m })
     }
 }
 
@@ -115,7 +112,10 @@ mod tests {
         // Two chains: trunk 30, 28, 27 and a lateral 9, 8.
         let g = branch_gaps(&[30, 28, 27, 9, 8], &[3, 2]);
         assert_eq!(g, vec![27, 1, 2, 8, 1]);
-        assert_eq!(radii_from_gaps(&g, &[3, 2]).unwrap(), vec![30, 28, 27, 9, 8]);
+        assert_eq!(
+            radii_from_gaps(&g, &[3, 2]).unwrap(),
+            vec![30, 28, 27, 9, 8]
+        );
     }
 
     proptest! {

@@ -8,8 +8,8 @@ use flate2::Compression;
 use flate2::write::GzEncoder;
 
 use super::{
-    ChainCode, ChainError, ChainOptions, Resolution, decode, encode, encode_order,
-    lod_thresholds, reduce_lod,
+    ChainCode, ChainError, ChainOptions, Resolution, decode, encode, encode_order, lod_thresholds,
+    reduce_lod,
 };
 use crate::skeleton::{NodeId, Skeleton};
 
