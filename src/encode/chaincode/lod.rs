@@ -163,7 +163,7 @@ pub fn reduce_lod(code: &ChainCode, radius_threshold_m: f32) -> ChainCode {
         let Some(g) = branch.group else { continue };
         let parent_kept = kept[groups[g].branch];
         let base = code.radius_m(code.radii_q[branch.nodes.0]);
-        kept[b] = parent_kept && base >= radius_threshold_m;
+        kept[b] = parent_kept && keeps_lateral(base, radius_threshold_m);
         if parent_kept && !kept[b] {
             group_kept[g] -= 1;
         }
@@ -206,6 +206,12 @@ pub fn reduce_lod(code: &ChainCode, radius_threshold_m: f32) -> ChainCode {
     }
 }
 
+/// The one LOD rule: a lateral stays if its base radius reaches the
+/// threshold (so a NaN threshold drops every lateral).
+fn keeps_lateral(base_radius_m: f32, radius_threshold_m: f32) -> bool {
+    base_radius_m >= radius_threshold_m
+}
+
 /// Scans a code that was checked when it was made.
 fn scan_valid(code: &ChainCode) -> Scan {
     scan(&code.symbols, code.radii_q.len()).expect("ChainCode is validated on construction")
@@ -241,8 +247,8 @@ pub fn prune_like_lod(skeleton: &Skeleton, radius_threshold_m: f32) -> Skeleton 
     let mut keep = vec![true; skeleton.len()];
     for id in skeleton.ids() {
         for (k, &c) in skeleton.children(id).iter().enumerate() {
-            let lateral_too_thin = k > 0 && skeleton.radius(c) < radius_threshold_m;
-            keep[c.index()] = keep[id.index()] && !lateral_too_thin;
+            let kept = k == 0 || keeps_lateral(skeleton.radius(c), radius_threshold_m);
+            keep[c.index()] = keep[id.index()] && kept;
         }
     }
     keep[NodeId::ROOT.index()] = true;
