@@ -5,6 +5,7 @@
 
 use crate::cloud::CloudError;
 use crate::reconstruct::ReconstructError;
+use crate::encode::chaincode::ChainError;
 use crate::skeleton::{SkeletonError, SkeletonJsonError};
 
 /// Any error silva's library returns.
@@ -22,6 +23,9 @@ pub enum Error {
     /// No skeleton could be reconstructed from a cloud.
     #[error(transparent)]
     Reconstruct(#[from] ReconstructError),
+    /// A chain code could not be encoded or decoded.
+    #[error(transparent)]
+    ChainCode(#[from] ChainError),
     /// File or stream IO failed.
     #[error(transparent)]
     Io(#[from] std::io::Error),

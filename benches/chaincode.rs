@@ -1,0 +1,57 @@
+//! Chain code throughput in internodes per second (issue 4 target: decoding
+//! at least 5 million per second at r = 5).
+//!
+//! `cargo bench --bench chaincode`. Trees come from the test generator
+//! (`tests/chaincode_support`): smooth, ~3,000 internodes.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use silva::encode::chaincode::{ChainCode, ChainOptions, Limits, Resolution, decode, encode};
+
+#[allow(dead_code)]
+#[path = "../tests/chaincode_support/mod.rs"]
+mod chaincode_support;
+
+fn chaincode(c: &mut Criterion) {
+    let tree = chaincode_support::botanical_tree(1, 3000);
+    let internodes = tree.internode_count() as u64;
+    let limits = Limits::default();
+    for r in [3.0f32, 5.0, 10.0] {
+        let opts = ChainOptions {
+            resolution: Resolution::PerInternode(r),
+            ..ChainOptions::default()
+        };
+        let code = encode(&tree, &opts).expect("encodable");
+        let packed = code.compress();
+        let plain = code.to_bytes();
+        let mut group = c.benchmark_group(format!("chaincode_r{r}"));
+        group.throughput(Throughput::Elements(internodes));
+        group.bench_function("decode", |b| {
+            b.iter(|| decode(black_box(&code)).expect("valid"))
+        });
+        group.bench_function("decompress", |b| {
+            b.iter(|| ChainCode::decompress(black_box(&packed), &limits).expect("valid"))
+        });
+        group.bench_function("decompress+decode", |b| {
+            b.iter(|| {
+                let code = ChainCode::decompress(black_box(&packed), &limits).expect("valid");
+                decode(&code).expect("valid")
+            })
+        });
+        group.bench_function("from_bytes+decode", |b| {
+            b.iter(|| {
+                let code = ChainCode::from_bytes(black_box(&plain), &limits).expect("valid");
+                decode(&code).expect("valid")
+            })
+        });
+        group.bench_function("encode", |b| {
+            b.iter(|| encode(black_box(&tree), &opts).expect("encodable"))
+        });
+        group.bench_function("compress", |b| b.iter(|| black_box(&code).compress()));
+        group.finish();
+    }
+}
+
+criterion_group!(benches, chaincode);
+criterion_main!(benches);

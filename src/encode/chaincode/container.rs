@@ -1,0 +1,329 @@
+//! The self-describing byte forms of a [`ChainCode`]: plain binary and
+//! interpolatively compressed (chain-code paper §3.3).
+//!
+//! Both start with the same header, so `silva decode` recognises a chain code
+//! by its first four bytes:
+//!
+//! | field | bytes |
+//! |---|---|
+//! | magic `SLVC` | 4 |
+//! | version (1) | 1 |
+//! | kind: 0 plain, 1 interpolative | 1 |
+//! | flags: bit 0 CRS present, bit 1 resolution present | 1 |
+//! | voxel size `d` (f64 LE, metres) | 8 |
+//! | radius step (f32 LE, metres) | 4 |
+//! | resolution `r` (f32 LE), if flagged | 4 |
+//! | anchor origin x, y, z (f64 LE) | 24 |
+//! | root position x, y, z relative to the anchor (f32 LE) | 12 |
+//! | CRS: varint length + UTF-8, if flagged | 1 + n |
+//! | symbol count, node count (LEB128 varints) | 2+ |
+//!
+//! *Plain* payload (the paper's "cc bin"): symbols as 4-bit nibbles, high
+//! nibble first; one byte `w`; each radius in `w` bits, MSB first.
+//!
+//! *Interpolative* payload: varints for the BWT key, the last cumulative sum
+//! of the MTF indices, the radius gap mapping (byte 0 = offset followed by
+//! the zigzagged offset, byte 1 = zigzag), the largest mapped radius gap and
+//! the last radius cumulative sum; then one bit stream holding the
+//! interpolative code of the symbols' MTF cumulative sum (gaps ≤ 8) followed
+//! by that of the radius gaps' cumulative sum.
+
+use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
+use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
+use super::{ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf};
+use crate::skeleton::Anchor;
+use glam::{DVec3, Vec3};
+
+/// The first bytes of every chain code stream.
+pub const MAGIC: &[u8; 4] = b"SLVC";
+/// The container version this build writes and reads.
+pub const VERSION: u8 = 1;
+
+const KIND_PLAIN: u8 = 0;
+const KIND_INTERPOLATIVE: u8 = 1;
+const FLAG_CRS: u8 = 1;
+const FLAG_RESOLUTION: u8 = 2;
+const MAX_SYMBOL_GAP: u64 = (ALPHABET - 1) as u64;
+
+impl ChainCode {
+    /// Plain binary form: header, 4-bit symbols, radii in the fewest bits
+    /// that hold the largest.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = self.header_bytes(KIND_PLAIN);
+        out.reserve(self.symbols.len() / 2 + self.radii_q.len() * 2 + 2);
+        for pair in self.symbols.chunks(2) {
+            out.push(pair[0] << 4 | pair.get(1).copied().unwrap_or(0));
+        }
+        let max = self.radii_q.iter().copied().max().unwrap_or(0);
+        let width = 32 - max.leading_zeros();
+        out.push(width as u8);
+        let mut w = BitWriter::new();
+        for &q in &self.radii_q {
+            w.write(u64::from(q), width);
+        }
+        out.extend(w.finish());
+        out
+    }
+
+    /// Reads the plain binary form, checking everything against `limits`.
+    pub fn from_bytes(bytes: &[u8], limits: &Limits) -> Result<ChainCode, ChainError> {
+        let mut cur = ByteCursor::new(bytes);
+        let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
+        if kind != KIND_PLAIN {
+            return Err(ChainError::Malformed(
+                "not a plain chain code; use decompress",
+            ));
+        }
+        let packed = cur.take(n_symbols.div_ceil(2))?;
+        let mut symbols = Vec::with_capacity(n_symbols);
+        for &b in packed {
+            symbols.push(b >> 4);
+            symbols.push(b & 0x0F);
+        }
+        if symbols.len() > n_symbols && symbols.pop() != Some(0) {
+            return Err(ChainError::Malformed("padding nibble is not zero"));
+        }
+        let width = u32::from(cur.u8()?);
+        if width > 32 {
+            return Err(ChainError::Malformed("radius width above 32 bits"));
+        }
+        let radius_bytes = (n_nodes as u64 * u64::from(width)).div_ceil(8) as usize;
+        let rest = cur.take(radius_bytes)?;
+        if !cur.rest().is_empty() {
+            return Err(ChainError::Malformed("bytes after the radii"));
+        }
+        let mut r = BitReader::new(rest);
+        let radii_q = (0..n_nodes).map(|_| r.read(width) as u32).collect();
+        ChainCode::new(header, symbols, radii_q)
+    }
+
+    /// Interpolative compression (§3.3): symbols through BWT, MTF and a
+    /// cumulative sum; radii per branch inverted into gaps, made
+    /// non-negative and summed; both sequences binary-interpolative coded.
+    pub fn compress(&self) -> Vec<u8> {
+        let mut out = self.header_bytes(KIND_INTERPOLATIVE);
+        let (last, primary) = bwt::bwt_forward(&self.symbols, ALPHABET);
+        let indices = mtf::mtf_forward(&last, ALPHABET);
+        let code_sums = cumulative(indices.iter().map(|&i| u64::from(i)));
+        put_varint(&mut out, primary as u64);
+        put_varint(&mut out, code_sums.last().copied().unwrap_or(0));
+
+        let scan = lod::scan(&self.symbols, self.radii_q.len())
+            .expect("ChainCode is validated on construction");
+        let gaps = branch_gaps(&self.radii_q, &scan.branch_lengths());
+        let (mapping, radius_sums) = best_radius_mapping(&gaps);
+        match mapping {
+            GapMapping::Offset(min) => {
+                out.push(0);
+                put_varint(&mut out, zigzag(min));
+            }
+            GapMapping::Zigzag => out.push(1),
+        }
+        let max_gap = gaps.iter().map(|&g| mapping.apply(g)).max().unwrap_or(0);
+        put_varint(&mut out, max_gap);
+        put_varint(&mut out, radius_sums.last().copied().unwrap_or(0));
+
+        let mut w = BitWriter::new();
+        interpolative::encode_into(&mut w, &code_sums, MAX_SYMBOL_GAP);
+        interpolative::encode_into(&mut w, &radius_sums, max_gap);
+        out.extend(w.finish());
+        out
+    }
+
+    /// Reads the interpolative form, checking everything against `limits`.
+    pub fn decompress(bytes: &[u8], limits: &Limits) -> Result<ChainCode, ChainError> {
+        let mut cur = ByteCursor::new(bytes);
+        let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
+        if kind != KIND_INTERPOLATIVE {
+            return Err(ChainError::Malformed(
+                "not a compressed chain code; use from_bytes",
+            ));
+        }
+        let primary = usize::try_from(cur.varint()?)
+            .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
+        let code_last = cur.varint()?;
+        let mapping = match cur.u8()? {
+            0 => GapMapping::Offset(unzigzag(cur.varint()?)),
+            1 => GapMapping::Zigzag,
+            _ => return Err(ChainError::Malformed("unknown radius gap mapping")),
+        };
+        let max_gap = cur.varint()?;
+        let radius_last = cur.varint()?;
+        let bit_bytes = cur.rest();
+
+        let mut r = BitReader::new(bit_bytes);
+        let code_sums = interpolative::decode_from(&mut r, n_symbols, code_last, MAX_SYMBOL_GAP)
+            .ok_or(ChainError::Malformed(
+                "symbol sums inconsistent with their count",
+            ))?;
+        let indices: Vec<u8> = differences(&code_sums).map(|g| g as u8).collect();
+        let last = mtf::mtf_inverse(&indices, ALPHABET)
+            .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
+        let symbols = bwt::bwt_inverse(&last, primary, ALPHABET).ok_or(ChainError::Malformed(
+            "BWT key does not invert the transform",
+        ))?;
+        let scan = lod::scan(&symbols, n_nodes)?;
+
+        let radius_sums = interpolative::decode_from(&mut r, n_nodes, radius_last, max_gap).ok_or(
+            ChainError::Malformed("radius sums inconsistent with their count"),
+        )?;
+        if r.overrun() {
+            return Err(ChainError::Truncated);
+        }
+        if r.bytes_consumed() != bit_bytes.len() {
+            return Err(ChainError::Malformed("bytes after the compressed stream"));
+        }
+        let gaps = differences(&radius_sums)
+            .map(|u| mapping.invert(u))
+            .collect::<Option<Vec<i64>>>()
+            .ok_or(ChainError::Malformed("radius gap out of range"))?;
+        let radii_q = radii_from_gaps(&gaps, &scan.branch_lengths())
+            .ok_or(ChainError::Malformed("radius out of range"))?;
+        ChainCode::new(header, symbols, radii_q)
+    }
+
+    fn header_bytes(&self, kind: u8) -> Vec<u8> {
+        let h = &self.header;
+        let mut out = Vec::with_capacity(64);
+        out.extend_from_slice(MAGIC);
+        out.push(VERSION);
+        out.push(kind);
+        let flags = if h.anchor.crs.is_some() { FLAG_CRS } else { 0 }
+            | if h.resolution.is_some() {
+                FLAG_RESOLUTION
+            } else {
+                0
+            };
+        out.push(flags);
+        out.extend_from_slice(&h.voxel_size_m.to_le_bytes());
+        out.extend_from_slice(&h.radius_step_m.to_le_bytes());
+        if let Some(r) = h.resolution {
+            out.extend_from_slice(&r.to_le_bytes());
+        }
+        for c in h.anchor.origin.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+        for c in h.root_position.to_array() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+        if let Some(crs) = &h.anchor.crs {
+            put_varint(&mut out, crs.len() as u64);
+            out.extend_from_slice(crs.as_bytes());
+        }
+        put_varint(&mut out, self.symbols.len() as u64);
+        put_varint(&mut out, self.radii_q.len() as u64);
+        out
+    }
+}
+
+/// True if `bytes` start like a chain code stream of either kind.
+pub fn is_chain_code(bytes: &[u8]) -> bool {
+    bytes.starts_with(MAGIC)
+}
+
+/// Parses and checks the common header: `(header, kind, symbols, nodes)`.
+fn read_header(
+    cur: &mut ByteCursor<'_>,
+    limits: &Limits,
+) -> Result<(ChainHeader, u8, usize, usize), ChainError> {
+    if cur.take(4).map_err(|_| ChainError::BadMagic)? != MAGIC {
+        return Err(ChainError::BadMagic);
+    }
+    let version = cur.u8()?;
+    if version != VERSION {
+        return Err(ChainError::UnsupportedVersion(version));
+    }
+    let kind = cur.u8()?;
+    let flags = cur.u8()?;
+    if flags & !(FLAG_CRS | FLAG_RESOLUTION) != 0 {
+        return Err(ChainError::Malformed("unknown flags"));
+    }
+    let voxel_size_m = cur.f64()?;
+    let radius_step_m = cur.f32()?;
+    let resolution = if flags & FLAG_RESOLUTION != 0 {
+        Some(cur.f32()?)
+    } else {
+        None
+    };
+    let origin = DVec3::new(cur.f64()?, cur.f64()?, cur.f64()?);
+    let root_position = Vec3::new(cur.f32()?, cur.f32()?, cur.f32()?);
+    let crs = if flags & FLAG_CRS != 0 {
+        let len = cur.varint()?;
+        if len > limits.max_crs_bytes as u64 {
+            return Err(ChainError::Malformed("CRS longer than the limit"));
+        }
+        let raw = cur.take(len as usize)?;
+        let text =
+            std::str::from_utf8(raw).map_err(|_| ChainError::Malformed("CRS is not UTF-8"))?;
+        Some(text.to_owned())
+    } else {
+        None
+    };
+    let n_symbols = cur.varint()?;
+    if n_symbols > limits.max_symbols as u64 {
+        return Err(ChainError::TooManySymbols {
+            found: usize::try_from(n_symbols).unwrap_or(usize::MAX),
+            limit: limits.max_symbols,
+        });
+    }
+    let n_nodes = cur.varint()?;
+    if n_nodes > limits.max_nodes as u64 {
+        return Err(ChainError::TooManyNodes {
+            found: usize::try_from(n_nodes).unwrap_or(usize::MAX),
+            limit: limits.max_nodes,
+        });
+    }
+    let header = ChainHeader {
+        voxel_size_m,
+        resolution,
+        radius_step_m,
+        anchor: Anchor { origin, crs },
+        root_position,
+    };
+    header.validate()?;
+    Ok((header, kind, n_symbols as usize, n_nodes as usize))
+}
+
+/// The mapping that codes the radius gaps in fewer bits, with its
+/// cumulative sums.
+fn best_radius_mapping(gaps: &[i64]) -> (GapMapping, Vec<u64>) {
+    let min = gaps.iter().copied().min().unwrap_or(0);
+    [GapMapping::Offset(min), GapMapping::Zigzag]
+        .into_iter()
+        .map(|mapping| {
+            let mapped: Vec<u64> = gaps.iter().map(|&g| mapping.apply(g)).collect();
+            let max_gap = mapped.iter().copied().max().unwrap_or(0);
+            let sums = cumulative(mapped.iter().copied());
+            let mut w = BitWriter::new();
+            interpolative::encode_into(&mut w, &sums, max_gap);
+            (mapping, sums, w.bit_len())
+        })
+        .min_by_key(|(_, _, bits)| *bits)
+        .map(|(mapping, sums, _)| (mapping, sums))
+        .expect("two candidates")
+}
+
+fn cumulative(values: impl Iterator<Item = u64>) -> Vec<u64> {
+    values
+        .scan(0u64, |acc, v| {
+            *acc += v;
+            Some(*acc)
+        })
+        .collect()
+}
+
+fn differences(sums: &[u64]) -> impl Iterator<Item = u64> + '_ {
+    sums.iter().scan(0u64, |prev, &s| {
+        let d = s - *prev;
+        *prev = s;
+        Some(d)
+    })
+}
+
+fn zigzag(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+fn unzigzag(u: u64) -> i64 {
+    ((u >> 1) as i64) ^ -((u & 1) as i64)
+}

@@ -1,0 +1,495 @@
+//! DBF6 encoding and decoding (chain-code paper §3.1, Pseudocode 1).
+//!
+//! The grammar (see `docs/chaincode.md` for the full statement):
+//! - decoding starts at the root, voxel `(0,0,0)`, at the start of a branch;
+//! - moves 0–5 add unit steps to the current internode's *correction*;
+//! - 6, 7 or 8 ends the internode: its voxel step is the correction plus the
+//!   previous internode's step on the same branch (nothing at a branch start),
+//!   and a node is created at the new voxel with the next radius;
+//! - 6 also enqueues a lateral at that node; a 6 read where a fork symbol was
+//!   just read (or at the very start, at the root) and no move has been read
+//!   since is a zero-length internode: it only enqueues one more lateral at
+//!   the same node;
+//! - 7 ends the branch and resumes at the oldest queued lateral, whose first
+//!   internode is coded in full; the code ends with the 7 that finds the
+//!   queue empty.
+//!
+//! The one ambiguity, an internode with a zero correction that itself ends in
+//! a fork right where a zero-length internode could stand, is removed by the
+//! encoder writing its correction as the cancelling pair `0 3`.
+
+use std::collections::VecDeque;
+
+use glam::DVec3;
+
+use super::radii::quantise;
+use super::{
+    ChainCode, ChainError, ChainHeader, ChainOptions, END, FORK, Limits, MOVE_NEG_X, MOVE_POS_X,
+    Resolution, TIP, Voxelisation,
+};
+use crate::skeleton::{Node, NodeId, Skeleton};
+
+/// Largest voxel coordinate the encoder produces; steps and corrections stay
+/// far inside `i32`.
+const MAX_VOXEL: f64 = (1u32 << 28) as f64;
+
+/// Unit step of each move symbol.
+const MOVES: [[i32; 3]; 6] = [
+    [1, 0, 0],
+    [0, 1, 0],
+    [0, 0, 1],
+    [-1, 0, 0],
+    [0, -1, 0],
+    [0, 0, -1],
+];
+
+/// Encodes a skeleton (Pseudocode 1). Children order is kept as it is: the
+/// first child of every node is its main extension (see
+/// [`Skeleton::order_main_extension_first`]).
+///
+/// The result holds at most `Limits::default()` symbols and nodes, so that
+/// every code this function produces can be read back with default limits.
+pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, ChainError> {
+    let step = opts.radius_step_m;
+    if !(step.is_finite() && step > 0.0) {
+        return Err(ChainError::InvalidOptions("radius step must be positive"));
+    }
+    let limits = Limits::default();
+    if skeleton.len() > limits.max_nodes {
+        return Err(ChainError::TooManyNodes {
+            found: skeleton.len(),
+            limit: limits.max_nodes,
+        });
+    }
+    let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
+    let root = skeleton.position(NodeId::ROOT);
+    let targets = scaled_positions(skeleton, voxel_size_m)?;
+    let order = encode_order(skeleton);
+
+    let mut voxels = vec![[0i32; 3]; skeleton.len()];
+    let mut symbols = Vec::new();
+    let mut radii_q = Vec::with_capacity(order.len());
+    radii_q.push(quantise(skeleton.radius(NodeId::ROOT), step)?);
+    let root_kids = skeleton.children(NodeId::ROOT).len();
+    symbols.extend(std::iter::repeat_n(FORK, root_kids.saturating_sub(1)));
+    for &node in &order[1..] {
+        let parent = skeleton.parent(node).expect("only the root lacks a parent");
+        let is_main = skeleton.children(parent)[0] == node;
+        // Differential prediction: a main extension repeats the previous
+        // internode's step; a branch's first internode is coded in full.
+        let predicted_step = match skeleton.parent(parent) {
+            Some(grand) if is_main => sub(voxels[parent.index()], voxels[grand.index()]),
+            _ => [0; 3],
+        };
+        let predicted = add(voxels[parent.index()], predicted_step).expect("within 2^29");
+        let v = choose_voxel(targets[node.index()], predicted, opts.voxelisation);
+        voxels[node.index()] = v;
+        let correction = sub(v, predicted);
+        let moves: u32 = correction.iter().map(|c| c.unsigned_abs()).sum();
+        let needed = symbols.len() + moves as usize + skeleton.children(node).len() + 2;
+        if needed > limits.max_symbols {
+            return Err(ChainError::TooManySymbols {
+                found: needed,
+                limit: limits.max_symbols,
+            });
+        }
+        push_moves(&mut symbols, correction);
+        let kids = skeleton.children(node).len();
+        let after_fork = is_main && (parent == NodeId::ROOT || skeleton.is_fork(parent));
+        if moves == 0 && after_fork && kids >= 2 {
+            symbols.extend([MOVE_POS_X, MOVE_NEG_X]);
+        }
+        match kids {
+            0 => symbols.push(TIP),
+            1 => symbols.push(END),
+            k => symbols.extend(std::iter::repeat_n(FORK, k - 1)),
+        }
+        radii_q.push(quantise(skeleton.radius(node), step)?);
+    }
+    Ok(ChainCode {
+        header: ChainHeader {
+            voxel_size_m,
+            resolution: match opts.resolution {
+                Resolution::PerInternode(r) => Some(r),
+                Resolution::VoxelSize(_) => None,
+            },
+            radius_step_m: step,
+            anchor: skeleton.anchor().clone(),
+            root_position: root,
+        },
+        symbols,
+        radii_q,
+    })
+}
+
+/// The original node ids in the order [`decode`] creates them: decoded node
+/// `i` is `encode_order(s)[i]`. Branch by branch: the trunk from the root
+/// along main extensions, then each lateral branch in the order its fork was
+/// passed.
+pub fn encode_order(skeleton: &Skeleton) -> Vec<NodeId> {
+    let mut order = Vec::with_capacity(skeleton.len());
+    let mut queue = VecDeque::new();
+    let mut cur = NodeId::ROOT;
+    order.push(cur);
+    loop {
+        let kids = skeleton.children(cur);
+        if kids.len() > 1 {
+            queue.extend(&kids[1..]);
+        }
+        let next = match kids.first() {
+            Some(&main) => main,
+            None => match queue.pop_front() {
+                Some(lateral) => lateral,
+                None => return order,
+            },
+        };
+        order.push(next);
+        cur = next;
+    }
+}
+
+/// Decodes a chain code into a skeleton whose node `i` is the original node
+/// `encode_order(s)[i]`, within `√3·d/2` of it.
+///
+/// Fails only if the coordinates leave the `i32` voxel or `f32` metre range.
+/// The loop still checks the grammar itself (the tests feed it raw streams),
+/// and its work is linear in the number of symbols.
+pub fn decode(code: &ChainCode) -> Result<Skeleton, ChainError> {
+    let header = &code.header;
+    header.validate()?;
+    let radii = &code.radii_q;
+    let symbols = &code.symbols;
+    let d = header.voxel_size_m;
+    let root = header.root_position.as_dvec3();
+    let step = f64::from(header.radius_step_m);
+    let radius = |q: u32| (f64::from(q) * step) as f32;
+    let place = |v: [i32; 3]| {
+        (root + DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])) * d).as_vec3()
+    };
+
+    let mut nodes = Vec::with_capacity(radii.len().min(symbols.len() + 1));
+    let Some(&root_q) = radii.first() else {
+        return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
+    };
+    nodes.push(Node {
+        position: header.root_position,
+        radius_m: radius(root_q),
+        parent: None,
+    });
+
+    let mut queue: VecDeque<(u32, [i32; 3])> = VecDeque::new();
+    let mut cur_node = 0u32;
+    let mut cur_v = [0i32; 3];
+    let mut pred = [0i32; 3];
+    let mut corr = [0i32; 3];
+    let mut has_moves = false;
+    let mut markers_allowed = true;
+    let mut finished = symbols.is_empty();
+    for (pos, &s) in symbols.iter().enumerate() {
+        if s < FORK {
+            let m = MOVES[usize::from(s)];
+            for a in 0..3 {
+                corr[a] = corr[a].wrapping_add(m[a]);
+            }
+            has_moves = true;
+            continue;
+        }
+        if s == FORK && markers_allowed && !has_moves {
+            queue.push_back((cur_node, cur_v));
+            continue;
+        }
+        if s > END {
+            return Err(ChainError::InvalidSymbol {
+                position: pos,
+                symbol: s,
+            });
+        }
+        let overflow = ChainError::CoordinateOverflow { position: pos };
+        let delta = add(pred, corr).ok_or(overflow.clone())?;
+        let v = add(cur_v, delta).ok_or(overflow)?;
+        let idx = nodes.len();
+        let Some(&q) = radii.get(idx) else {
+            return Err(ChainError::RadiiCount {
+                nodes: idx + 1,
+                radii: radii.len(),
+            });
+        };
+        nodes.push(Node {
+            position: place(v),
+            radius_m: radius(q),
+            parent: Some(NodeId::from_index(cur_node as usize)),
+        });
+        cur_node = idx as u32;
+        cur_v = v;
+        pred = delta;
+        corr = [0; 3];
+        has_moves = false;
+        markers_allowed = s == FORK;
+        if s == FORK {
+            queue.push_back((cur_node, cur_v));
+        } else if s == TIP {
+            match queue.pop_front() {
+                Some((fork, fork_v)) => {
+                    cur_node = fork;
+                    cur_v = fork_v;
+                    pred = [0; 3];
+                }
+                None => {
+                    let left = symbols.len() - pos - 1;
+                    if left > 0 {
+                        return Err(ChainError::TrailingSymbols { count: left });
+                    }
+                    finished = true;
+                }
+            }
+        }
+    }
+    if !finished {
+        return Err(ChainError::Unterminated {
+            queued: queue.len(),
+        });
+    }
+    if nodes.len() != radii.len() {
+        return Err(ChainError::RadiiCount {
+            nodes: nodes.len(),
+            radii: radii.len(),
+        });
+    }
+    Ok(Skeleton::from_nodes(header.anchor.clone(), nodes)?)
+}
+
+/// Voxel size in metres for the chosen resolution (Eq. 2 with the mean
+/// internode length; 1 m stands in when no internode has positive length).
+fn voxel_size(skeleton: &Skeleton, resolution: Resolution) -> Result<f64, ChainError> {
+    let d = match resolution {
+        Resolution::VoxelSize(d) => d,
+        Resolution::PerInternode(r) => {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(ChainError::InvalidOptions("resolution must be positive"));
+            }
+            let (sum, count) = skeleton
+                .ids()
+                .map(|id| f64::from(skeleton.internode_length(id)))
+                .filter(|&l| l > 0.0)
+                .fold((0.0, 0u64), |(s, c), l| (s + l, c + 1));
+            let mean = if count == 0 { 1.0 } else { sum / count as f64 };
+            mean / f64::from(r)
+        }
+    };
+    if d.is_finite() && d > 0.0 {
+        Ok(d)
+    } else {
+        Err(ChainError::InvalidOptions("voxel size must be positive"))
+    }
+}
+
+/// Node positions relative to the root in voxel units, checked to stay
+/// within ±2^28 voxels.
+fn scaled_positions(skeleton: &Skeleton, d: f64) -> Result<Vec<DVec3>, ChainError> {
+    let root = skeleton.position(NodeId::ROOT).as_dvec3();
+    skeleton
+        .nodes()
+        .iter()
+        .map(|n| {
+            let x = (n.position.as_dvec3() - root) / d;
+            if x.abs().max_element() > MAX_VOXEL {
+                return Err(ChainError::TooFine { voxel_size_m: d });
+            }
+            Ok(x)
+        })
+        .collect()
+}
+
+/// The voxel for a node at `x` (voxel units from the root), given the voxel
+/// the differential prediction points at.
+fn choose_voxel(x: DVec3, predicted: [i32; 3], mode: Voxelisation) -> [i32; 3] {
+    // Eq. 1, rtz(x + sgn(x)/2): rounding half away from zero, so voxel
+    // (0,0,0) is centred on the root. Its centre is within √3/2 of x.
+    let r = x.round();
+    let nearest = [r.x as i32, r.y as i32, r.z as i32];
+    if mode == Voxelisation::Nearest {
+        return nearest;
+    }
+    let cost = |v: [i32; 3]| {
+        let moves: u32 = sub(v, predicted).iter().map(|c| c.unsigned_abs()).sum();
+        let c = DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
+        (moves, c.distance_squared(x))
+    };
+    // Every voxel whose centre is within √3/2 of x: at most two per axis.
+    let reach = 3f64.sqrt() / 2.0;
+    let lo = (x - reach).ceil();
+    let hi = (x + reach).floor();
+    let mut best = (nearest, cost(nearest));
+    for i in lo.x as i32..=hi.x as i32 {
+        for j in lo.y as i32..=hi.y as i32 {
+            for k in lo.z as i32..=hi.z as i32 {
+                let v = [i, j, k];
+                let c = cost(v);
+                if c.1 <= 0.75 && c < best.1 {
+                    best = (v, c);
+                }
+            }
+        }
+    }
+    best.0
+}
+
+/// Appends the moves of a correction, clustered by axis (x, then y, then z)
+/// as the paper suggests for compressibility.
+fn push_moves(symbols: &mut Vec<u8>, c: [i32; 3]) {
+    for (axis, &v) in c.iter().enumerate() {
+        let sym = if v >= 0 { axis as u8 } else { axis as u8 + 3 };
+        symbols.extend(std::iter::repeat_n(sym, v.unsigned_abs() as usize));
+    }
+}
+
+fn sub(a: [i32; 3], b: [i32; 3]) -> [i32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn add(a: [i32; 3], b: [i32; 3]) -> Option<[i32; 3]> {
+    Some([
+        a[0].checked_add(b[0])?,
+        a[1].checked_add(b[1])?,
+        a[2].checked_add(b[2])?,
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::Anchor;
+    use glam::Vec3;
+
+    fn decoded_position(code: &ChainCode, v: [i32; 3]) -> Vec3 {
+        let d = code.header.voxel_size_m;
+        (code.header.root_position.as_dvec3()
+            + DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])) * d)
+            .as_vec3()
+    }
+
+    /// The planar tree of the paper's Figs. 4 and 6 (unit voxels, x right,
+    /// y up).
+    fn paper_tree() -> Skeleton {
+        let p = |x: f32, y: f32| Vec3::new(x, y, 0.0);
+        let mut s = Skeleton::new(Anchor::default(), 0.010);
+        let n1 = s.add_child(NodeId::ROOT, p(0.0, 3.0), 0.009);
+        let n2 = s.add_child(n1, p(0.0, 6.0), 0.008);
+        let n3 = s.add_child(n2, p(-1.0, 8.0), 0.006);
+        s.add_child(n3, p(-2.0, 11.0), 0.004);
+        let l1 = s.add_child(n2, p(2.0, 8.0), 0.004);
+        s.add_child(n3, p(-4.0, 8.0), 0.002);
+        s.add_child(l1, p(3.0, 10.0), 0.003);
+        s.add_child(l1, p(5.0, 7.0), 0.001);
+        s
+    }
+
+    fn as_text(symbols: &[u8]) -> String {
+        symbols.iter().map(|s| char::from(b'0' + s)).collect()
+    }
+
+    #[test]
+    fn reproduces_the_papers_differential_code() {
+        let opts = ChainOptions {
+            resolution: Resolution::VoxelSize(1.0),
+            ..ChainOptions::default()
+        };
+        let code = encode(&paper_tree(), &opts).unwrap();
+        // Fig. 6 of the paper.
+        assert_eq!(as_text(&code.symbols), "11186346170011637333700047");
+        assert_eq!(code.radii_q, vec![10, 9, 8, 6, 4, 4, 3, 2, 1]);
+        let back = decode(&code).unwrap();
+        assert_eq!(back.len(), 9);
+        let order = encode_order(&paper_tree());
+        for (i, &orig) in order.iter().enumerate() {
+            let id = NodeId::from_index(i);
+            assert_eq!(back.position(id), paper_tree().position(orig));
+        }
+    }
+
+    #[test]
+    fn multi_way_fork_with_zero_correction_main_extension() {
+        // Root trifurcates; the main extension continues straight and then
+        // forks again, so it needs the cancelling pair.
+        let mut s = Skeleton::new(Anchor::default(), 0.1);
+        let a = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.1);
+        let b = s.add_child(a, Vec3::new(0.0, 0.0, 2.0), 0.1);
+        s.add_child(a, Vec3::new(1.0, 0.0, 1.0), 0.1);
+        s.add_child(a, Vec3::new(-1.0, 0.0, 1.0), 0.1);
+        let c = s.add_child(b, Vec3::new(0.0, 0.0, 3.0), 0.1);
+        s.add_child(b, Vec3::new(0.0, 1.0, 2.0), 0.1);
+        s.add_child(c, Vec3::new(0.0, 0.0, 3.0), 0.1);
+        let opts = ChainOptions {
+            resolution: Resolution::VoxelSize(1.0),
+            ..ChainOptions::default()
+        };
+        let code = encode(&s, &opts).unwrap();
+        assert_eq!(as_text(&code.symbols), "266036857073717");
+        let back = decode(&code).unwrap();
+        assert_eq!(back.len(), s.len());
+        for (i, &orig) in encode_order(&s).iter().enumerate() {
+            let id = NodeId::from_index(i);
+            assert_eq!(back.position(id), s.position(orig));
+            assert_eq!(
+                back.parent(id).map(|p| encode_order(&s)[p.index()]),
+                s.parent(orig)
+            );
+        }
+    }
+
+    #[test]
+    fn single_node_and_bad_streams() {
+        let s = Skeleton::new(Anchor::default(), 0.2);
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        assert!(code.symbols.is_empty());
+        assert_eq!(decode(&code).unwrap().len(), 1);
+
+        let mut bad = code.clone();
+        bad.symbols = vec![2, 8];
+        bad.radii_q = vec![1, 1];
+        assert!(matches!(decode(&bad), Err(ChainError::Unterminated { .. })));
+        bad.symbols = vec![2, 7, 2];
+        assert!(matches!(
+            decode(&bad),
+            Err(ChainError::TrailingSymbols { count: 1 })
+        ));
+        bad.symbols = vec![9, 7];
+        assert!(matches!(
+            decode(&bad),
+            Err(ChainError::InvalidSymbol { .. })
+        ));
+        bad.symbols = vec![2, 7];
+        bad.radii_q = vec![1];
+        assert!(matches!(decode(&bad), Err(ChainError::RadiiCount { .. })));
+    }
+
+    #[test]
+    fn voxel_rounding_is_half_away_from_zero() {
+        let mut s = Skeleton::new(Anchor::default(), 0.1);
+        s.add_child(NodeId::ROOT, Vec3::new(0.5, -0.5, 1.49), 0.1);
+        let x = scaled_positions(&s, 1.0).unwrap();
+        let v = choose_voxel(x[1], [0; 3], Voxelisation::Nearest);
+        assert_eq!(v, [1, -1, 1]);
+        let code = encode(
+            &s,
+            &ChainOptions {
+                resolution: Resolution::VoxelSize(1.0),
+                voxelisation: Voxelisation::Nearest,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(decoded_position(&code, v), Vec3::new(1.0, -1.0, 1.0));
+        assert_eq!(
+            decode(&code).unwrap().position(NodeId::from_index(1)),
+            Vec3::new(1.0, -1.0, 1.0)
+        );
+
+        // The predictive choice may take another voxel within the bound.
+        let v = choose_voxel(x[1], [0; 3], Voxelisation::Predictive);
+        assert_eq!(v, [0, 0, 1]);
+        let c = DVec3::new(0.0, 0.0, 1.0);
+        assert!(c.distance(x[1]) <= 3f64.sqrt() / 2.0);
+    }
+}

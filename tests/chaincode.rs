@@ -1,0 +1,308 @@
+//! DBF6 chain code: round trips with the √3·d/2 guarantee, LOD semantics,
+//! both byte forms, and hostile input.
+
+mod chaincode_support;
+
+use chaincode_support::{botanical_tree, random_skeleton};
+use proptest::prelude::*;
+use silva::encode::chaincode::{
+    self, ChainCode, ChainError, ChainOptions, Limits, Resolution, Voxelisation, decode, encode,
+    encode_order, prune_like_lod, reduce_lod,
+};
+use silva::{NodeId, Skeleton};
+
+/// Slack for `f32` rounding of metre coordinates up to ~100 m from the root.
+const F32_SLACK_M: f64 = 2e-5;
+
+fn opts(resolution: Resolution) -> ChainOptions {
+    ChainOptions {
+        resolution,
+        ..ChainOptions::default()
+    }
+}
+
+/// Checks that `decoded` is `original` up to the stated bounds: node `i` of
+/// `decoded` is `encode_order(original)[i]`, with the same parent, the same
+/// children in the same order, position within √3·d/2, radius within half a
+/// step.
+fn assert_faithful(original: &Skeleton, code: &ChainCode, decoded: &Skeleton) {
+    let order = encode_order(original);
+    assert_eq!(decoded.len(), original.len());
+    assert_eq!(order.len(), original.len());
+    let mut position_of = vec![0usize; original.len()];
+    for (i, &o) in order.iter().enumerate() {
+        position_of[o.index()] = i;
+    }
+    let bound = code.error_bound_m() + F32_SLACK_M;
+    let half_step = f64::from(code.header().radius_step_m) / 2.0 + 1e-6;
+    assert_eq!(decoded.anchor(), original.anchor());
+    for (i, &o) in order.iter().enumerate() {
+        let d = NodeId::from_index(i);
+        let err = decoded
+            .position(d)
+            .as_dvec3()
+            .distance(original.position(o).as_dvec3());
+        assert!(err <= bound, "node {i}: error {err} > bound {bound}");
+        let dr = f64::from(decoded.radius(d)) - f64::from(original.radius(o));
+        assert!(dr.abs() <= half_step, "node {i}: radius off by {dr}");
+        assert_eq!(
+            decoded.parent(d).map(|p| p.index()),
+            original.parent(o).map(|p| position_of[p.index()])
+        );
+        let kids: Vec<usize> = original
+            .children(o)
+            .iter()
+            .map(|c| position_of[c.index()])
+            .collect();
+        let decoded_kids: Vec<usize> = decoded.children(d).iter().map(|c| c.index()).collect();
+        assert_eq!(decoded_kids, kids, "children of node {i}");
+    }
+}
+
+/// Same topology, child order and positions within `bound` after putting
+/// both in canonical order.
+fn assert_same_shape(a: &Skeleton, b: &Skeleton, bound: f64) {
+    let (a, b) = (a.canonical(), b.canonical());
+    assert_eq!(a.len(), b.len());
+    for id in a.ids() {
+        assert_eq!(a.parent(id), b.parent(id));
+        let err = a
+            .position(id)
+            .as_dvec3()
+            .distance(b.position(id).as_dvec3());
+        assert!(err <= bound, "node {}: {err} > {bound}", id.index());
+    }
+}
+
+fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
+    let nearest = ChainOptions {
+        voxelisation: Voxelisation::Nearest,
+        ..opts(resolution)
+    };
+    let code = encode(s, &nearest).unwrap();
+    assert_faithful(s, &code, &decode(&code).unwrap());
+    let code = encode(s, &opts(resolution)).unwrap();
+    let decoded = decode(&code).unwrap();
+    assert_faithful(s, &code, &decoded);
+    let limits = Limits::default();
+    assert_eq!(
+        ChainCode::from_bytes(&code.to_bytes(), &limits).unwrap(),
+        code
+    );
+    assert_eq!(
+        ChainCode::decompress(&code.compress(), &limits).unwrap(),
+        code
+    );
+    code
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn random_skeletons_round_trip(seed in any::<u64>(), nodes in 1usize..120,
+                                   r in prop_oneof![Just(3.0f32), Just(5.0), Just(10.0), 0.3f32..20.0]) {
+        let s = random_skeleton(seed, nodes);
+        round_trip_all_forms(&s, Resolution::PerInternode(r));
+    }
+
+    #[test]
+    fn lod_equals_pruning_the_skeleton(seed in any::<u64>(), nodes in 1usize..120, t_mm in 0u32..400) {
+        let s = random_skeleton(seed, nodes);
+        let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
+        // Radii are whole millimetres: a threshold half way between two is
+        // unaffected by quantisation.
+        let t = (t_mm as f32 + 0.5) * 0.001;
+        let reduced = reduce_lod(&code, t);
+        let lod = decode(&reduced).unwrap();
+        // Exactly the decoded full skeleton, pruned ...
+        prop_assert_eq!(&lod, &prune_like_lod(&decode(&code).unwrap(), t).canonical_in_code_order());
+        // ... and the original skeleton pruned, within the voxel bound.
+        assert_same_shape(&lod, &prune_like_lod(&s, t), code.error_bound_m() + F32_SLACK_M);
+        // Reduction composes: a coarser level from a finer one.
+        let coarser = (t_mm as f32 + 100.5) * 0.001;
+        prop_assert_eq!(reduce_lod(&reduced, coarser), reduce_lod(&code, coarser));
+        // The reduced code survives both byte forms.
+        prop_assert_eq!(ChainCode::decompress(&reduced.compress(), &Limits::default()).unwrap(), reduced);
+    }
+
+    #[test]
+    fn hostile_bytes_are_rejected_without_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+        let limits = Limits::default();
+        let _ = ChainCode::from_bytes(&bytes, &limits);
+        let _ = ChainCode::decompress(&bytes, &limits);
+        let mut with_magic = b"SLVC\x01".to_vec();
+        with_magic.extend_from_slice(&bytes);
+        let parsed = [ChainCode::from_bytes(&with_magic, &limits), ChainCode::decompress(&with_magic, &limits)];
+        for code in parsed.into_iter().flatten() {
+            let _ = decode(&code);
+        }
+    }
+
+    #[test]
+    fn corrupted_streams_never_panic(seed in any::<u64>(), flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6)) {
+        let s = random_skeleton(seed, 60);
+        let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
+        let limits = Limits::default();
+        for mut bytes in [code.to_bytes(), code.compress()] {
+            for &(at, x) in &flips {
+                let n = bytes.len();
+                bytes[at % n] ^= x;
+            }
+            let parsed = [ChainCode::from_bytes(&bytes, &limits), ChainCode::decompress(&bytes, &limits)];
+            for c in parsed.into_iter().flatten() {
+                let _ = decode(&c);
+                let _ = reduce_lod(&c, 0.1);
+            }
+        }
+    }
+}
+
+/// Decoding order is the code's; `canonical` is depth first. The reduced
+/// code decodes in code order, so compare in that order.
+trait CodeOrder {
+    fn canonical_in_code_order(&self) -> Skeleton;
+}
+
+impl CodeOrder for Skeleton {
+    fn canonical_in_code_order(&self) -> Skeleton {
+        let order = encode_order(self);
+        let mut index = vec![0usize; self.len()];
+        for (i, &o) in order.iter().enumerate() {
+            index[o.index()] = i;
+        }
+        let nodes = order
+            .iter()
+            .map(|&o| {
+                let mut n = *self.node(o);
+                n.parent = n.parent.map(|p| NodeId::from_index(index[p.index()]));
+                n
+            })
+            .collect();
+        Skeleton::from_nodes(self.anchor().clone(), nodes).unwrap()
+    }
+}
+
+#[test]
+fn botanical_trees_round_trip_at_the_papers_resolutions() {
+    for seed in 0..4 {
+        let s = botanical_tree(seed, 1500);
+        assert!(s.internode_count() > 500);
+        for r in [3.0, 5.0, 10.0] {
+            round_trip_all_forms(&s, Resolution::PerInternode(r));
+        }
+    }
+}
+
+#[test]
+fn synthetic_species_round_trip() {
+    use silva::synth::{Species, TreeParams, generate};
+    for species in Species::ALL {
+        let s = generate(&TreeParams::preset(species), 3, chaincode_support::anchor());
+        for r in [3.0, 5.0, 10.0] {
+            round_trip_all_forms(&s, Resolution::PerInternode(r));
+        }
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        for t in chaincode::lod_thresholds(&code, chaincode::LOD_LEVELS) {
+            let lod = decode(&reduce_lod(&code, t)).unwrap();
+            assert!(lod.len() < s.len());
+            assert_eq!(
+                lod,
+                prune_like_lod(&decode(&code).unwrap(), t).canonical_in_code_order()
+            );
+        }
+    }
+}
+
+#[test]
+fn fixed_voxel_size_and_large_offsets() {
+    let s = random_skeleton(7, 300);
+    let code = round_trip_all_forms(&s, Resolution::VoxelSize(0.01));
+    assert_eq!(code.header().voxel_size_m, 0.01);
+    assert_eq!(code.header().resolution, None);
+    assert_eq!(code.header().anchor.crs.as_deref(), Some("EPSG:28992"));
+}
+
+#[test]
+fn compressed_botanical_tree_is_small_at_r5() {
+    // The paper reaches 1.1-2.4 bytes per internode (Table 5); the target is
+    // 1.5 at r = 5, header included.
+    for seed in 0..3 {
+        let s = botanical_tree(seed, 3000);
+        let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
+        let per_internode = code.compress().len() as f64 / s.internode_count() as f64;
+        assert!(
+            per_internode <= 1.5,
+            "seed {seed}: {per_internode:.3} B/internode"
+        );
+        assert!(code.compress().len() < code.to_bytes().len());
+    }
+}
+
+#[test]
+fn truncated_streams_are_errors() {
+    let s = botanical_tree(1, 400);
+    let code = encode(&s, &ChainOptions::default()).unwrap();
+    let limits = Limits::default();
+    let plain = code.to_bytes();
+    let packed = code.compress();
+    for cut in 0..plain.len() {
+        assert!(
+            ChainCode::from_bytes(&plain[..cut], &limits).is_err(),
+            "plain cut at {cut}"
+        );
+    }
+    for cut in 0..packed.len() {
+        assert!(
+            ChainCode::decompress(&packed[..cut], &limits).is_err(),
+            "packed cut at {cut}"
+        );
+    }
+    // The two forms are not interchangeable, and both carry the magic.
+    assert!(chaincode::is_chain_code(&plain) && chaincode::is_chain_code(&packed));
+    assert!(ChainCode::from_bytes(&packed, &limits).is_err());
+    assert!(ChainCode::decompress(&plain, &limits).is_err());
+}
+
+#[test]
+fn huge_declared_counts_are_refused_before_allocating() {
+    let s = random_skeleton(3, 10);
+    let code = encode(&s, &ChainOptions::default()).unwrap();
+    let small = Limits {
+        max_symbols: 4,
+        ..Limits::default()
+    };
+    let err = ChainCode::decompress(&code.compress(), &small).unwrap_err();
+    assert!(matches!(err, ChainError::TooManySymbols { .. }), "{err}");
+    let err = ChainCode::from_bytes(&code.to_bytes(), &small).unwrap_err();
+    assert!(matches!(err, ChainError::TooManySymbols { .. }), "{err}");
+    let tiny_nodes = Limits {
+        max_nodes: 2,
+        ..Limits::default()
+    };
+    let err = ChainCode::decompress(&code.compress(), &tiny_nodes).unwrap_err();
+    assert!(matches!(err, ChainError::TooManyNodes { .. }), "{err}");
+}
+
+#[test]
+fn bad_options_are_errors() {
+    let s = random_skeleton(5, 20);
+    for r in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(encode(&s, &opts(Resolution::PerInternode(r))).is_err());
+    }
+    assert!(matches!(
+        encode(&s, &opts(Resolution::VoxelSize(1e-12))),
+        Err(ChainError::TooFine { .. })
+    ));
+    let bad_step = ChainOptions {
+        radius_step_m: 0.0,
+        ..ChainOptions::default()
+    };
+    assert!(encode(&s, &bad_step).is_err());
+}
+
+#[test]
+fn crate_error_wraps_chain_errors() {
+    let err: silva::Error = ChainError::BadMagic.into();
+    assert!(err.to_string().contains("SLVC"));
+}
