@@ -40,3 +40,11 @@ fn synthetic_sizes() {
         assert!(err <= 0.001);
     }
 }
+
+#[test]
+#[ignore]
+fn dump_synthetic() {
+    let s = synthetic_tree(0, 2000);
+    let ls = lsystem::encode(&s, &LsOptions::default());
+    std::fs::write("/tmp/ls_dump.json", ls.to_json()).unwrap();
+}

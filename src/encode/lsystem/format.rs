@@ -48,8 +48,12 @@ pub struct ErrorBound {
     /// node it encodes, in metres (the writer's tolerance, or the
     /// generalisation error if that is larger).
     pub bound_m: f64,
-    /// Stated bound on the absolute radius error of every node, metres.
+    /// Stated bound on the radius error of thin branches, metres: every
+    /// decoded radius `r'` of a node of radius `r` has
+    /// `|r' − r| ≤ max(radius_bound_m, radius_bound_rel · r)`.
     pub radius_bound_m: f64,
+    /// Stated bound on the radius error relative to the radius.
+    pub radius_bound_rel: f64,
     /// Largest node position error the writer measured, metres.
     pub max_m: f64,
     /// Mean node position error the writer measured, metres.
@@ -191,6 +195,7 @@ impl LsJson {
         let stats = [
             e.bound_m,
             e.radius_bound_m,
+            e.radius_bound_rel,
             e.max_m,
             e.mean_m,
             e.radius_max_m,
@@ -361,7 +366,7 @@ mod tests {
     fn lex_print_round_trip() {
         let text = "F(.25)[+(30)&(-1.5e1)F]\\(2)/(.001)!(0.05)FA";
         let symbols = lex(text, "axiom").unwrap();
-        assert_eq!(symbols.len(), 12);
+        assert_eq!(symbols.len(), 11);
         assert_eq!(lex(&print(&symbols), "axiom").unwrap(), symbols);
         assert_eq!(print(&lex("F(0.5)+(-0.25)", "a").unwrap()), "F(.5)+(-.25)");
     }

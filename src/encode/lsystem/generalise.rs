@@ -23,9 +23,7 @@ use glam::DVec3;
 
 use super::format::Symbol;
 use super::turtle::TurtleState;
-use super::write::{
-    Tolerance, WRITE_DIMENSIONS, position_budget, roll_pitch, shortest_within, simulate,
-};
+use super::write::{Tolerance, WRITE_DIMENSIONS, roll_pitch, shortest_within, simulate};
 use crate::skeleton::{NodeId, Skeleton};
 
 /// Rule letters, for 1, 2, … generalised steps (`F` is the turtle's).
@@ -120,8 +118,7 @@ impl TipPlan {
         if length > 0.0 {
             let (roll, pitch) = roll_pitch(turtle, offset / length, false);
             let lever = length * pitch.to_radians().sin().abs();
-            let half_width =
-                (position_budget(tolerance.position_m, target) / lever.max(1e-300)).to_degrees();
+            let half_width = (tolerance.position_budget(target) / lever.max(1e-300)).to_degrees();
             let roll = shortest_within(roll, half_width.max(0.0));
             if roll != 0.0 {
                 let s = Symbol::with(if roll > 0.0 { b'\\' } else { b'/' }, roll.abs());
@@ -215,7 +212,10 @@ fn rule_body(measured: &[Vec<Step>], i: usize, tolerance: Tolerance) -> Vec<Symb
     let radius = mean(|s| s.radius_m);
     let angle_half_width = (tolerance.position_m / length.max(1e-9)).to_degrees();
     let mut body = vec![
-        Symbol::with(b'!', shortest_within(radius, tolerance.radius_m)),
+        Symbol::with(
+            b'!',
+            shortest_within(radius, tolerance.radius_allowed(radius)),
+        ),
         Symbol::with(b'&', shortest_within(pitch, angle_half_width)),
         Symbol::with(b'F', shortest_within(length, tolerance.position_m)),
     ];

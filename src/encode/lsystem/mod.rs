@@ -45,6 +45,7 @@ mod expand;
 mod format;
 mod generalise;
 mod read;
+mod rules;
 mod turtle;
 mod write;
 
@@ -58,7 +59,7 @@ pub use read::decode;
 
 use format::{Dimensions, Symbol};
 use generalise::TipPlan;
-use write::{Tolerance, radius_budget, shortest_within, write_axiom};
+use write::{Tolerance, shortest_within, write_axiom};
 
 use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 
@@ -67,8 +68,14 @@ use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 pub struct LsOptions {
     /// Largest distance between a decoded node and the original, metres.
     pub tolerance_m: f32,
-    /// Largest difference between a decoded radius and the original, metres.
+    /// Largest difference between a decoded radius and the original,
+    /// metres, for thin branches; see [`radius_tolerance_rel`](Self::radius_tolerance_rel).
     pub radius_tolerance_m: f32,
+    /// Largest difference between a decoded radius and the original, as a
+    /// fraction of the radius. The allowed difference is the larger of the
+    /// two: radius estimates from LiDAR are good to a few percent, and
+    /// millimetres on a 30 cm trunk would cost a `!(w)` at every node.
+    pub radius_tolerance_rel: f32,
     /// Tip generalisation (§3.3.1): replace the last `k` steps of every tip
     /// by averaged rules (at most [`MAX_GENERALISED_STEPS`], never beyond the
     /// tip's own branch). `None` keeps every tip exact.
@@ -80,6 +87,7 @@ impl Default for LsOptions {
         Self {
             tolerance_m: 0.001,
             radius_tolerance_m: 0.0005,
+            radius_tolerance_rel: 0.01,
             generalise_tips: None,
         }
     }
@@ -237,21 +245,22 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
     let tolerance = Tolerance {
         position_m: non_negative(opts.tolerance_m),
         radius_m: non_negative(opts.radius_tolerance_m),
+        radius_rel: non_negative(opts.radius_tolerance_rel),
     };
     let plan = opts
         .generalise_tips
         .filter(|&k| k > 0)
         .map(|k| TipPlan::new(&canon, &targets, k, tolerance));
     let root_radius = f64::from(canon.radius(NodeId::ROOT));
-    let trunk_radius_m = shortest_within(
-        root_radius,
-        radius_budget(tolerance.radius_m, root_radius).max(0.0),
-    );
+    let trunk_radius_m =
+        shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0));
     let mut axiom = write_axiom(&canon, &targets, trunk_radius_m, tolerance, plan.as_ref());
     let mut rules = plan.as_ref().map(|p| p.rules.clone()).unwrap_or_default();
     let dimensions = use_defaults(&mut axiom, rules.values_mut());
+    let mut depth = rules::rule_depths(&rules);
+    rules::compress(&mut axiom, &mut rules, &mut depth);
     let mut ls = LsJson {
-        recursions: plan.as_ref().map_or(0, |p| p.steps as u32),
+        recursions: depth.values().copied().max().unwrap_or(0),
         axiom,
         rules,
         anchor: Anchor {
@@ -267,9 +276,11 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
     ls
 }
 
+/// A tolerance as `f64` at the decimal value the user typed (0.001, not
+/// 0.0010000000474974513); 0 when not a positive number.
 fn non_negative(v: f32) -> f64 {
     if v.is_finite() && v > 0.0 {
-        f64::from(v)
+        v.to_string().parse().unwrap_or(f64::from(v))
     } else {
         0.0
     }
@@ -345,6 +356,7 @@ fn measure(
         }
     };
     let mut sum = 0.0;
+    let mut radius_within = true;
     for id in canon.ids() {
         let error = decoded
             .absolute_position(id)
@@ -353,12 +365,20 @@ fn measure(
         sum += error;
         bound.max_m = bound.max_m.max(error);
         bound.radius_max_m = bound.radius_max_m.max(radius_error);
+        radius_within &= radius_error <= tolerance.radius_allowed(f64::from(canon.radius(id)));
         if plan.is_some_and(|p| p.is_generalised(id)) {
             bound.generalisation_max_m = bound.generalisation_max_m.max(error);
         }
     }
     bound.mean_m = sum / canon.len() as f64;
     bound.bound_m = tolerance.position_m.max(bound.max_m);
-    bound.radius_bound_m = tolerance.radius_m.max(bound.radius_max_m);
+    // Generalised tips may leave the radius tolerance; then the largest
+    // error measured is the bound.
+    bound.radius_bound_m = if radius_within {
+        tolerance.radius_m
+    } else {
+        tolerance.radius_m.max(bound.radius_max_m)
+    };
+    bound.radius_bound_rel = tolerance.radius_rel;
     bound
 }

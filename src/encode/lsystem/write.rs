@@ -40,17 +40,6 @@ pub(crate) const WRITE_DIMENSIONS: Dimensions = Dimensions {
 /// Relative slack for the `f32` rounding of a decoded value of magnitude 1.
 const F32_SLACK: f64 = 1.0 / (1u64 << 23) as f64;
 
-/// Position budget for a node at `target`: the tolerance, less what the
-/// reader's conversion to `f32` may add.
-pub(crate) fn position_budget(tolerance_m: f64, target: DVec3) -> f64 {
-    tolerance_m * (1.0 - 1e-6) - target.length() * F32_SLACK
-}
-
-/// Radius budget for a node of radius `radius_m`.
-pub(crate) fn radius_budget(tolerance_m: f64, radius_m: f64) -> f64 {
-    tolerance_m * (1.0 - 1e-6) - radius_m * F32_SLACK
-}
-
 /// The number with the fewest decimals within `half_width` of `value`, as
 /// the reader will parse it; `value` itself when the interval is too narrow.
 pub(crate) fn shortest_within(value: f64, half_width: f64) -> f64 {
@@ -228,18 +217,37 @@ pub(crate) fn write_internode(
     error
 }
 
-/// Appends `!(w)` if the decoded width is further than `budget_m` from the
-/// node's radius, choosing the shortest width within the budget.
-pub(crate) fn write_width(
+/// Appends `!(w)` if the decoded width is further than the radius budget
+/// from the radius of node `id`. The new width is chosen to serve as many
+/// nodes ahead on the main-extension chain as possible (the intersection of
+/// their tolerance intervals), printed as the shortest number in it, so that
+/// a slowly tapering branch needs few `!`.
+fn write_width(
     turtle: &mut TurtleState,
-    radius_m: f64,
-    budget_m: f64,
+    skeleton: &Skeleton,
+    id: NodeId,
+    tolerance: Tolerance,
     out: &mut Vec<Symbol>,
 ) {
-    if (turtle.width_m - radius_m).abs() <= budget_m {
+    let interval = |n: NodeId| {
+        let r = f64::from(skeleton.radius(n));
+        let b = tolerance.radius_budget(r).max(0.0);
+        (r - b, r + b)
+    };
+    let (mut lo, mut hi) = interval(id);
+    if (lo..=hi).contains(&turtle.width_m) {
         return;
     }
-    let w = shortest_within(radius_m, budget_m.max(0.0)).max(0.0);
+    let mut node = id;
+    while let Some(&next) = skeleton.children(node).first() {
+        let (l, h) = interval(next);
+        if l.max(lo) > h.min(hi) {
+            break;
+        }
+        (lo, hi) = (l.max(lo), h.min(hi));
+        node = next;
+    }
+    let w = shortest_within((lo + hi) / 2.0, (hi - lo) / 2.0).max(0.0);
     let s = Symbol::with(b'!', w);
     turtle.apply(s, &WRITE_DIMENSIONS, true);
     out.push(s);
@@ -259,8 +267,30 @@ enum Work {
 /// Tolerances of one encoding.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Tolerance {
+    /// Node position, metres.
     pub(crate) position_m: f64,
+    /// Radius, absolute floor, metres.
     pub(crate) radius_m: f64,
+    /// Radius, relative to the radius.
+    pub(crate) radius_rel: f64,
+}
+
+impl Tolerance {
+    /// Position budget for a node at `target`: the tolerance, less what the
+    /// reader's conversion to `f32` may add.
+    pub(crate) fn position_budget(&self, target: DVec3) -> f64 {
+        self.position_m * (1.0 - 1e-6) - target.length() * F32_SLACK
+    }
+
+    /// Radius error allowed for a node of radius `radius_m`.
+    pub(crate) fn radius_allowed(&self, radius_m: f64) -> f64 {
+        self.radius_m.max(self.radius_rel * radius_m)
+    }
+
+    /// Radius budget for a node of radius `radius_m`, less the `f32` slack.
+    pub(crate) fn radius_budget(&self, radius_m: f64) -> f64 {
+        self.radius_allowed(radius_m) * (1.0 - 1e-6) - radius_m * F32_SLACK
+    }
 }
 
 /// Writes the whole skeleton (canonical order; `targets` relative to the
@@ -302,17 +332,11 @@ pub(crate) fn write_axiom(
                     continue;
                 }
                 let target = targets[id.index()];
-                let radius = f64::from(skeleton.radius(id));
-                write_width(
-                    &mut turtle,
-                    radius,
-                    radius_budget(tolerance.radius_m, radius),
-                    &mut out,
-                );
+                write_width(&mut turtle, skeleton, id, tolerance, &mut out);
                 write_internode(
                     &mut turtle,
                     target,
-                    position_budget(tolerance.position_m, target),
+                    tolerance.position_budget(target),
                     &mut out,
                 );
                 push_children(skeleton, id, &mut work);
