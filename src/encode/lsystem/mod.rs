@@ -236,11 +236,15 @@ pub enum LsError {
 /// Nodes are written in canonical order (see [`Skeleton::canonical`]).
 pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
     let canon = skeleton.canonical();
-    let root = canon.position(NodeId::ROOT).as_dvec3();
+    // The trunk anchor is the root's absolute position, printable exactly;
+    // targets are relative to it, computed without cancellation.
+    let origin = canon.anchor().origin;
+    let anchor = canon.absolute_position(NodeId::ROOT).map(json_exact);
+    let shift = origin - anchor;
     let targets: Vec<DVec3> = canon
         .nodes()
         .iter()
-        .map(|n| n.position.as_dvec3() - root)
+        .map(|n| shift + n.position.as_dvec3())
         .collect();
     let tolerance = Tolerance {
         position_m: non_negative(opts.tolerance_m),
@@ -264,7 +268,7 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
         axiom,
         rules,
         anchor: Anchor {
-            origin: canon.absolute_position(NodeId::ROOT),
+            origin: anchor,
             crs: canon.anchor().crs.clone(),
         },
         trunk_radius_m,
@@ -303,7 +307,7 @@ fn use_defaults<'a>(
         }
         counts
             .into_iter()
-            .filter(|&(_, n)| n >= 2)
+            .filter(|&(bits, n)| n >= 2 && json_exact(f64::from_bits(bits)).to_bits() == bits)
             .max_by_key(|&(bits, n)| (n, std::cmp::Reverse(bits)))
             .map(|(bits, _)| f64::from_bits(bits))
     };
@@ -333,6 +337,19 @@ fn use_defaults<'a>(
     }
 }
 
+/// `v` rounded to 15 significant digits. serde_json (without its
+/// `float_roundtrip` feature) parses such numbers exactly, so the document
+/// reads back bit for bit; for a national-grid anchor that is nanometres.
+fn json_exact(v: f64) -> f64 {
+    format!("{v:.14e}").parse().unwrap_or(v)
+}
+
+/// `v` rounded up to a multiple of 0.1 µm.
+fn round_up(v: f64) -> f64 {
+    let r = (v * 1e7).ceil() / 1e7;
+    if r < v { v } else { r }
+}
+
 /// Decodes `ls` and compares it, node by node, with the canonical skeleton
 /// it was written from.
 fn measure(
@@ -350,8 +367,8 @@ fn measure(
         // Cannot happen for a skeleton of finite f32 coordinates; state the
         // failure rather than a bound that does not hold.
         _ => {
-            bound.bound_m = f64::MAX;
-            bound.radius_bound_m = f64::MAX;
+            bound.bound_m = 1e300;
+            bound.radius_bound_m = 1e300;
             return bound;
         }
     };
@@ -370,7 +387,12 @@ fn measure(
             bound.generalisation_max_m = bound.generalisation_max_m.max(error);
         }
     }
-    bound.mean_m = sum / canon.len() as f64;
+    // Statistics to 0.1 µm keep the document short; maxima round up so
+    // that they still bound.
+    bound.max_m = round_up(bound.max_m);
+    bound.radius_max_m = round_up(bound.radius_max_m);
+    bound.generalisation_max_m = round_up(bound.generalisation_max_m);
+    bound.mean_m = (sum / canon.len() as f64 * 1e7).round() / 1e7;
     bound.bound_m = tolerance.position_m.max(bound.max_m);
     // Generalised tips may leave the radius tolerance; then the largest
     // error measured is the bound.
