@@ -304,3 +304,25 @@ fn random_trees_smoke() {
         );
     }
 }
+
+#[test]
+fn weber_penn_trees_within_bound() {
+    use silva::synth::{Species, TreeParams, generate};
+    for species in Species::ALL {
+        for seed in 1..3 {
+            let anchor = Anchor::at(DVec3::new(155_000.0, 463_000.0, 0.0));
+            let s = generate(&TreeParams::preset(species), seed, anchor);
+            let (ls, text, back) = round_trip(&s, &LsOptions::default());
+            let (error, _) = max_errors(&s, &back);
+            println!(
+                "{species} seed {seed}: {} internodes, {} B raw ({:.1} B/internode), {} B gzip, max {error:.6} m, mean {:.6} m",
+                s.internode_count(),
+                text.len(),
+                text.len() as f64 / s.internode_count() as f64,
+                gzip_len(&text),
+                ls.error().mean_m
+            );
+            assert!(error <= 0.001);
+        }
+    }
+}
