@@ -53,8 +53,8 @@ pub fn decode(ls: &LsJson, limits: &Limits) -> Result<Skeleton, LsError> {
                         limit: limits.max_nodes,
                     });
                 }
-                // `!(x <= max)` also catches NaN.
-                if !(turtle.position.length() <= limits.max_extent_m) {
+                let distance = turtle.position.length();
+                if distance.is_nan() || distance > limits.max_extent_m {
                     return Err(LsError::OutOfRange {
                         node: drawn.len(),
                         limit_m: limits.max_extent_m,
