@@ -1,6 +1,8 @@
 //! Fuzzes the LsJSON reader (parse, rule expansion, turtle): any input must
 //! give a skeleton or a typed error, never a panic, a hang or an unbounded
 //! allocation.
+//!
+//! `cd fuzz && cargo +nightly fuzz run -s none lsjson corpus/lsjson -- -max_total_time=300 -rss_limit_mb=2048 -timeout=10`
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
