@@ -39,8 +39,9 @@ pub(crate) fn compress(
     let mut free = (b'A'..=b'Z')
         .chain(b'a'..=b'z')
         .filter(|c| !b"Ff".contains(c) && !taken.contains(c));
+    let mut costs = HashMap::new();
     loop {
-        let Some(pattern) = best_pattern(axiom) else {
+        let Some(pattern) = best_pattern(axiom, &mut costs) else {
             return;
         };
         let Some(letter) = free.next() else {
@@ -59,43 +60,53 @@ pub(crate) fn compress(
 }
 
 /// The single symbol or adjacent pair whose replacement saves most bytes,
-/// if any saves some.
-fn best_pattern(axiom: &[Symbol]) -> Option<Vec<Symbol>> {
-    let mut singles: HashMap<Key, (usize, Symbol)> = HashMap::new();
-    let mut pairs: HashMap<(Key, Key), (usize, [Symbol; 2])> = HashMap::new();
+/// if any saves some. Ties go to the smallest key, so the result does not
+/// depend on hash order. `costs` caches printed lengths across calls.
+fn best_pattern(axiom: &[Symbol], costs: &mut HashMap<Key, usize>) -> Option<Vec<Symbol>> {
+    let mut singles: HashMap<Key, usize> = HashMap::new();
+    let mut pairs: HashMap<(Key, Key), usize> = HashMap::new();
     // Pairs are counted without overlap inside runs such as `aaa`.
     let mut last_counted = usize::MAX;
     for (i, s) in axiom.iter().enumerate() {
+        let k = key(s);
+        costs.entry(k).or_insert_with(|| cost(s));
         if s.param.is_some() {
-            singles.entry(key(s)).or_insert((0, *s)).0 += 1;
+            *singles.entry(k).or_default() += 1;
         }
         if i == 0 {
             continue;
         }
-        let pair = (key(&axiom[i - 1]), key(s));
+        let pair = (key(&axiom[i - 1]), k);
         let overlaps = last_counted == i - 1 && pair == (key(&axiom[i - 2]), key(&axiom[i - 1]));
         if !overlaps {
-            pairs.entry(pair).or_insert((0, [axiom[i - 1], *s])).0 += 1;
+            *pairs.entry(pair).or_default() += 1;
             last_counted = i;
         }
     }
-    let saving = |count: usize, len: usize| {
-        (count * len.saturating_sub(1)) as i64 - (len + RULE_OVERHEAD) as i64
-    };
-    let single = singles
-        .values()
-        .map(|(n, s)| (saving(*n, cost(s)), vec![*s]))
-        .max_by_key(|(gain, p)| (*gain, std::cmp::Reverse(print(p))));
-    let pair = pairs
-        .values()
-        .map(|(n, p)| (saving(*n, cost(&p[0]) + cost(&p[1])), p.to_vec()))
-        .max_by_key(|(gain, p)| (*gain, std::cmp::Reverse(print(p))));
-    [single, pair]
+    let singles = singles
         .into_iter()
-        .flatten()
-        .filter(|(gain, _)| *gain > 0)
-        .max_by_key(|(gain, p)| (*gain, std::cmp::Reverse(print(p))))
-        .map(|(_, p)| p)
+        .map(|(k, n)| (saving(n, costs[&k]), [Some(k), None]));
+    let pairs = pairs
+        .into_iter()
+        .map(|((a, b), n)| (saving(n, costs[&a] + costs[&b]), [Some(a), Some(b)]));
+    let (gain, keys) = singles
+        .chain(pairs)
+        .max_by_key(|&(gain, keys)| (gain, std::cmp::Reverse(keys)))?;
+    (gain > 0).then(|| keys.into_iter().flatten().map(symbol).collect())
+}
+
+/// Bytes saved by replacing `count` occurrences of a pattern of `len` bytes
+/// by one letter, less the rule's own cost.
+fn saving(count: usize, len: usize) -> i64 {
+    (count * len.saturating_sub(1)) as i64 - (len + RULE_OVERHEAD) as i64
+}
+
+/// The symbol a key stands for.
+fn symbol((ch, param): Key) -> Symbol {
+    Symbol {
+        ch,
+        param: param.map(f64::from_bits),
+    }
 }
 
 /// Recursions each rule letter needs to expand fully: 1 + the most any
