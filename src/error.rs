@@ -4,8 +4,9 @@
 //! prints one clear line and the API maps each variant to one HTTP status.
 
 use crate::cloud::CloudError;
-use crate::reconstruct::ReconstructError;
 use crate::encode::chaincode::ChainError;
+use crate::encode::lsystem::LsError;
+use crate::reconstruct::ReconstructError;
 use crate::skeleton::{SkeletonError, SkeletonJsonError};
 
 /// Any error silva's library returns.
@@ -26,6 +27,9 @@ pub enum Error {
     /// A chain code could not be encoded or decoded.
     #[error(transparent)]
     ChainCode(#[from] ChainError),
+    /// An LsJSON document was rejected.
+    #[error(transparent)]
+    LsJson(#[from] LsError),
     /// File or stream IO failed.
     #[error(transparent)]
     Io(#[from] std::io::Error),

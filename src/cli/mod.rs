@@ -6,8 +6,8 @@
 use clap::{Parser, Subcommand};
 
 mod info;
-mod synth;
 mod reconstruct;
+mod synth;
 
 /// silva: tree skeletons from LiDAR point clouds.
 #[derive(Debug, Parser)]

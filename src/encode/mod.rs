@@ -5,3 +5,4 @@
 //! compression (chain-code-tree-compression-lod §3). No IO.
 
 pub mod chaincode;
+pub mod lsystem;

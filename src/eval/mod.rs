@@ -3,5 +3,5 @@
 //! Will hold skeleton-to-truth distances, branch recall and precision, and
 //! point-to-surface fit for real clouds.
 
-pub mod fit;
 pub mod compare;
+pub mod fit;

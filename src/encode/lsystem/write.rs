@@ -1,0 +1,378 @@
+//! The closed-loop writer (lsystem-from-adtree-skeletons §3.2.3–3.2.5,
+//! Algorithms 3.1–3.3, redone so that errors cannot build up).
+//!
+//! The paper computes each step from the *original* skeleton and rounds it,
+//! so rounding errors add up along a branch (§4.4, Table 4.1). Here each step
+//! is computed from the state the reader will have after decoding the
+//! already-written, rounded steps: the writer runs the reader's own turtle
+//! ([`TurtleState::apply`]) on the parsed values it prints. The step to a
+//! node aims from the *decoded* parent position at the *original* node, so
+//! the error of every node is only the rounding error of its own step, which
+//! the writer checks before accepting it: `|decoded − original| ≤ tolerance`
+//! for every node, whatever its depth.
+//!
+//! Each step is a roll `\`/`/` about the heading, then a pitch `&`/`^` about
+//! the (rolled) left axis, then `F(l)`: both angles are taken in the turtle's
+//! own frame, which has no pole. Numbers are printed with the fewest
+//! decimals that keep the node within tolerance: the writer tries the
+//! combinations of coarser and finer roundings of roll, pitch and length,
+//! cheapest first, and keeps the first whose decoded position is close
+//! enough. Zero angles are omitted and `!(w)` is written only when the
+//! decoded width would otherwise leave the radius tolerance.
+
+use glam::DVec3;
+
+use super::format::{Dimensions, Symbol};
+use super::generalise::TipPlan;
+use super::turtle::{Effect, TurtleState};
+use crate::skeleton::{NodeId, Skeleton};
+
+/// Finest rounding tried before printing a number exactly.
+const MAX_DECIMALS: usize = 12;
+/// Dimensions the writer assumes while writing; defaults are only filled in
+/// afterwards, for parameters that already equal them.
+pub(crate) const WRITE_DIMENSIONS: Dimensions = Dimensions {
+    forward: 1.0,
+    rotation: 0.0,
+    roll: 0.0,
+};
+
+/// Relative slack for the `f32` rounding of a decoded value of magnitude 1.
+const F32_SLACK: f64 = 1.0 / (1u64 << 23) as f64;
+
+/// The number with the fewest decimals within `half_width` of `value`, as
+/// the reader will parse it; `value` itself when the interval is too narrow.
+pub(crate) fn shortest_within(value: f64, half_width: f64) -> f64 {
+    (0..=MAX_DECIMALS)
+        .map(|k| rounded(value, k))
+        .find(|v| (v - value).abs() <= half_width)
+        .unwrap_or(value)
+}
+
+/// `value` rounded to `decimals`, through its decimal text, exactly as the
+/// reader parses it.
+fn rounded(value: f64, decimals: usize) -> f64 {
+    format!("{value:.decimals$}")
+        .parse()
+        .expect("a formatted f64 parses")
+}
+
+/// Printed length of a parameter, in characters.
+fn printed_len(value: f64) -> usize {
+    let mut s = String::new();
+    super::format::push_number(&mut s, value);
+    s.len()
+}
+
+/// One way to print a quantity: the symbol (if any) and its cost in bytes.
+#[derive(Clone, Copy)]
+struct Choice {
+    symbol: Option<Symbol>,
+    cost: usize,
+}
+
+/// Roundings of a signed angle in degrees, coarse to fine, plus "omit".
+/// Rounding stops once the error it would add is below `fine_deg`.
+fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> Vec<Choice> {
+    let mut out = vec![Choice {
+        symbol: None,
+        cost: 0,
+    }];
+    let mut last = 0.0;
+    for k in 0..=MAX_DECIMALS {
+        let v = rounded(angle_deg, k);
+        if v != 0.0 && v != last {
+            let ch = if v > 0.0 { positive } else { negative };
+            out.push(Choice {
+                symbol: Some(Symbol::with(ch, v.abs())),
+                cost: 3 + printed_len(v.abs()),
+            });
+            last = v;
+        }
+        if (v - angle_deg).abs() <= fine_deg {
+            return out;
+        }
+    }
+    out.push(Choice {
+        symbol: Some(Symbol::with(
+            if angle_deg > 0.0 { positive } else { negative },
+            angle_deg.abs(),
+        )),
+        cost: 3 + printed_len(angle_deg.abs()),
+    });
+    out
+}
+
+/// Roundings of an internode length, coarse to fine.
+fn length_choices(length_m: f64, fine_m: f64) -> Vec<Choice> {
+    let mut out: Vec<Choice> = Vec::new();
+    let mut last = f64::NAN;
+    for k in 0..=MAX_DECIMALS {
+        let v = rounded(length_m, k);
+        if v != last {
+            out.push(Choice {
+                symbol: Some(Symbol::with(b'F', v)),
+                cost: 3 + printed_len(v),
+            });
+            last = v;
+        }
+        if (v - length_m).abs() <= fine_m {
+            return out;
+        }
+    }
+    out.push(Choice {
+        symbol: Some(Symbol::with(b'F', length_m)),
+        cost: 3 + printed_len(length_m),
+    });
+    out
+}
+
+/// Roll (about `H`) and pitch (about the rolled `L`, positive down) in
+/// degrees that turn `turtle`'s heading onto `direction` (unit). When
+/// `signed_pitch`, the roll is kept within ±90° and the pitch takes a sign,
+/// which keeps rolls small; otherwise the pitch is in [0°, 180°].
+pub(crate) fn roll_pitch(turtle: &TurtleState, direction: DVec3, signed_pitch: bool) -> (f64, f64) {
+    let h = direction.dot(turtle.heading);
+    let l = direction.dot(turtle.left);
+    let u = direction.dot(turtle.up);
+    let side = l.hypot(u);
+    if side < 1e-15 {
+        return (0.0, if h < 0.0 { 180.0 } else { 0.0 });
+    }
+    let mut roll = l.atan2(-u).to_degrees();
+    let mut pitch = side.atan2(h).to_degrees();
+    if signed_pitch && roll.abs() > 90.0 {
+        roll -= 180.0f64.copysign(roll);
+        pitch = -pitch;
+    }
+    (roll, pitch)
+}
+
+/// Appends the cheapest symbols that move `turtle` from its state to within
+/// `budget_m` of `target`, drawing a node, and applies them to `turtle`.
+/// Returns the decoded position error of the new node.
+pub(crate) fn write_internode(
+    turtle: &mut TurtleState,
+    target: DVec3,
+    budget_m: f64,
+    out: &mut Vec<Symbol>,
+) -> f64 {
+    let offset = target - turtle.position;
+    let length = offset.length();
+    let budget = budget_m.max(0.0);
+    // A rounding whose own error is this small counts as exact.
+    let fine_m = budget * 1e-2;
+    let (rolls, pitches) = if length > 0.0 {
+        let (roll, pitch) = roll_pitch(turtle, offset / length, true);
+        let fine_pitch = (fine_m / length).to_degrees();
+        let sin_pitch = pitch.to_radians().sin().abs().max(1e-300);
+        let fine_roll = (fine_m / (length * sin_pitch)).to_degrees();
+        (
+            angle_choices(roll, b'\\', b'/', fine_roll),
+            angle_choices(pitch, b'&', b'^', fine_pitch),
+        )
+    } else {
+        (
+            vec![Choice {
+                symbol: None,
+                cost: 0,
+            }],
+            vec![Choice {
+                symbol: None,
+                cost: 0,
+            }],
+        )
+    };
+    let lengths = length_choices(length, fine_m);
+    let mut combos: Vec<(usize, Choice, Choice, Choice)> = Vec::new();
+    for &r in &rolls {
+        for &p in &pitches {
+            for &f in &lengths {
+                combos.push((r.cost + p.cost + f.cost, r, p, f));
+            }
+        }
+    }
+    combos.sort_by_key(|c| c.0);
+    let simulate = |(_, r, p, f): &(usize, Choice, Choice, Choice)| {
+        let mut t = *turtle;
+        for s in [r.symbol, p.symbol, f.symbol].into_iter().flatten() {
+            t.apply(s, &WRITE_DIMENSIONS, true);
+        }
+        (t, t.position.distance(target))
+    };
+    let chosen = combos
+        .iter()
+        .find(|c| simulate(c).1 <= budget)
+        // The finest roundings are nearly exact; should even they miss
+        // (a tolerance of 0), the last, finest combination is the best.
+        .or(combos.last())
+        .expect("there is always at least one combination");
+    let (state, error) = simulate(chosen);
+    out.extend(
+        [chosen.1.symbol, chosen.2.symbol, chosen.3.symbol]
+            .into_iter()
+            .flatten(),
+    );
+    *turtle = state;
+    error
+}
+
+/// Appends `!(w)` if the decoded width is further than the radius budget
+/// from the radius of node `id`. The new width is chosen to serve as many
+/// nodes ahead on the main-extension chain as possible (the intersection of
+/// their tolerance intervals), printed as the shortest number in it, so that
+/// a slowly tapering branch needs few `!`.
+fn write_width(
+    turtle: &mut TurtleState,
+    skeleton: &Skeleton,
+    id: NodeId,
+    tolerance: Tolerance,
+    out: &mut Vec<Symbol>,
+) {
+    let interval = |n: NodeId| {
+        let r = f64::from(skeleton.radius(n));
+        let b = tolerance.radius_budget(r).max(0.0);
+        (r - b, r + b)
+    };
+    let (mut lo, mut hi) = interval(id);
+    if (lo..=hi).contains(&turtle.width_m) {
+        return;
+    }
+    let mut node = id;
+    while let Some(&next) = skeleton.children(node).first() {
+        let (l, h) = interval(next);
+        if l.max(lo) > h.min(hi) {
+            break;
+        }
+        (lo, hi) = (l.max(lo), h.min(hi));
+        node = next;
+    }
+    let w = shortest_within((lo + hi) / 2.0, (hi - lo) / 2.0).max(0.0);
+    let s = Symbol::with(b'!', w);
+    turtle.apply(s, &WRITE_DIMENSIONS, true);
+    out.push(s);
+}
+
+/// Work items of the iterative traversal (Algorithm 3.1 without recursion,
+/// so that a branch of any length cannot overflow the call stack).
+enum Work {
+    /// Write the internode into this node, then its subtree.
+    Internode(NodeId),
+    /// `[`: save the decoded state.
+    Open,
+    /// `]`: restore it.
+    Close,
+}
+
+/// Tolerances of one encoding.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tolerance {
+    /// Node position, metres.
+    pub(crate) position_m: f64,
+    /// Radius, absolute floor, metres.
+    pub(crate) radius_m: f64,
+    /// Radius, relative to the radius.
+    pub(crate) radius_rel: f64,
+}
+
+impl Tolerance {
+    /// Position budget for a node at `target`: the tolerance, less what the
+    /// reader's conversion to `f32` may add.
+    pub(crate) fn position_budget(&self, target: DVec3) -> f64 {
+        self.position_m * (1.0 - 1e-6) - target.length() * F32_SLACK
+    }
+
+    /// Radius error allowed for a node of radius `radius_m`.
+    pub(crate) fn radius_allowed(&self, radius_m: f64) -> f64 {
+        self.radius_m.max(self.radius_rel * radius_m)
+    }
+
+    /// Radius budget for a node of radius `radius_m`, less the `f32` slack.
+    pub(crate) fn radius_budget(&self, radius_m: f64) -> f64 {
+        self.radius_allowed(radius_m) * (1.0 - 1e-6) - radius_m * F32_SLACK
+    }
+}
+
+/// Writes the whole skeleton (canonical order; `targets` relative to the
+/// root) as an axiom. Laterals come first, each in `[...]`; the main
+/// extension continues after them. Tips planned for generalisation are
+/// written as a roll and one rule letter.
+pub(crate) fn write_axiom(
+    skeleton: &Skeleton,
+    targets: &[DVec3],
+    trunk_radius_m: f64,
+    tolerance: Tolerance,
+    plan: Option<&TipPlan>,
+) -> Vec<Symbol> {
+    let mut out = Vec::with_capacity(skeleton.len() * 4);
+    let mut turtle = TurtleState::start(trunk_radius_m);
+    let mut saved: Vec<TurtleState> = Vec::new();
+    let mut work: Vec<Work> = Vec::new();
+    push_children(skeleton, NodeId::ROOT, &mut work);
+    while let Some(item) = work.pop() {
+        match item {
+            Work::Open => {
+                out.push(Symbol::bare(b'['));
+                saved.push(turtle);
+            }
+            Work::Close => {
+                out.push(Symbol::bare(b']'));
+                turtle = saved.pop().expect("every ] follows its [");
+            }
+            Work::Internode(id) => {
+                if let Some(rule) = plan.and_then(|p| p.rule_at(id)) {
+                    let target = targets[id.index()];
+                    plan.expect("rule_at came from the plan").write_tip(
+                        &mut turtle,
+                        target,
+                        rule,
+                        tolerance,
+                        &mut out,
+                    );
+                    continue;
+                }
+                let target = targets[id.index()];
+                write_width(&mut turtle, skeleton, id, tolerance, &mut out);
+                write_internode(
+                    &mut turtle,
+                    target,
+                    tolerance.position_budget(target),
+                    &mut out,
+                );
+                push_children(skeleton, id, &mut work);
+            }
+        }
+    }
+    out
+}
+
+/// Schedules the children of `id`: laterals in `[...]` in their order, then
+/// the main extension (the stack runs in reverse).
+fn push_children(skeleton: &Skeleton, id: NodeId, work: &mut Vec<Work>) {
+    let kids = skeleton.children(id);
+    if let Some((&main, laterals)) = kids.split_first() {
+        work.push(Work::Internode(main));
+        for &lateral in laterals.iter().rev() {
+            work.push(Work::Close);
+            work.push(Work::Internode(lateral));
+            work.push(Work::Open);
+        }
+    }
+}
+
+/// Applies `symbols` with the reader's turtle, expanding rule letters by
+/// `rules` (without nesting), and returns the positions drawn.
+pub(crate) fn simulate<'r>(
+    turtle: &mut TurtleState,
+    symbols: &[Symbol],
+    rules: &dyn Fn(u8) -> Option<&'r [Symbol]>,
+    drawn: &mut Vec<DVec3>,
+) {
+    for &s in symbols {
+        if let Some(body) = rules(s.ch) {
+            simulate(turtle, body, rules, drawn);
+        } else if turtle.apply(s, &WRITE_DIMENSIONS, true) == Effect::Drew {
+            drawn.push(turtle.position);
+        }
+    }
+}
