@@ -3,6 +3,7 @@
 //! Each stage has its own typed error; [`Error`] gathers them so that the CLI
 //! prints one clear line and the API maps each variant to one HTTP status.
 
+use crate::cityjson::CityJsonError;
 use crate::cloud::CloudError;
 use crate::skeleton::{SkeletonError, SkeletonJsonError};
 
@@ -18,6 +19,9 @@ pub enum Error {
     /// A skeleton JSON document was rejected.
     #[error(transparent)]
     SkeletonJson(#[from] SkeletonJsonError),
+    /// A CityJSON or CityJSONSeq output could not be written.
+    #[error(transparent)]
+    CityJson(#[from] CityJsonError),
     /// File or stream IO failed.
     #[error(transparent)]
     Io(#[from] std::io::Error),
