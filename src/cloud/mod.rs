@@ -5,6 +5,16 @@
 //! stream, so memory is bounded by a point limit. Clean-up passes prepare
 //! clouds for reconstruction (AdTree's near-duplicate removal, statistical
 //! outlier removal, voxel downsampling).
+//!
+//! ```
+//! use silva::cloud::{Format, ReadOptions, read_bytes};
+//!
+//! let (cloud, format) = read_bytes(b"0 0 0\n1 0 0\n", &ReadOptions::default()).unwrap();
+//! assert_eq!((format, cloud.len()), (Format::Xyz, 2));
+//!
+//! let broken = read_bytes(b"0 0 0\n1 nan 0\n", &ReadOptions::default()).unwrap_err();
+//! assert_eq!(broken.to_string(), "XYZ: line 2: non-finite coordinate (1, NaN, 0)");
+//! ```
 
 use glam::{DVec3, Vec3};
 
@@ -125,5 +135,17 @@ impl PointCloud {
     }
 }
 
+pub mod clean;
 mod error;
+mod lasfile;
+mod ply;
+mod read;
+mod write;
+mod xyz;
+
 pub use error::{CloudError, Format, Location};
+pub use read::{
+    DETECT_LEN, FileDetails, LasDetails, ReadOptions, detect, read, read_as, read_bytes, read_path,
+    read_path_with_details, read_with_details,
+};
+pub use write::{format_for_path, to_laz_bytes, write, write_path};

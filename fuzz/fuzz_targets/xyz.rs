@@ -1,0 +1,14 @@
+//! Fuzzes the XYZ text reader: any input must give Ok or a typed error,
+//! never a panic, a hang or an unbounded allocation.
+#![no_main]
+
+use std::io::Cursor;
+
+use libfuzzer_sys::fuzz_target;
+use silva::cloud::{Format, ReadOptions, read_as};
+
+fuzz_target!(|data: &[u8]| {
+    // A small limit keeps each run fast; the limit itself is what is tested.
+    let opts = ReadOptions { max_points: 100_000 };
+    let _ = read_as(Cursor::new(data), Format::Xyz, &opts);
+});

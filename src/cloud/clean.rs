@@ -1,0 +1,233 @@
+//! Clean-up passes run before reconstruction: near-duplicate removal,
+//! statistical outlier removal and voxel downsampling.
+//!
+//! AdTree (Du et al. 2019, §3.1) removes points closer than 0.001 × the
+//! bounding-box diagonal before building its Delaunay graph, because
+//! coincident points make the triangulation and the minimum spanning tree
+//! degenerate. Statistical outlier removal drops isolated returns (birds,
+//! dust, multipath) whose mean distance to their k nearest neighbours is far
+//! above the cloud's average. Voxel downsampling caps density so that dense
+//! terrestrial scans cost the same as airborne ones downstream.
+//!
+//! All passes keep real points (never synthesise averages), so attributes
+//! travel with them, and they keep the input order of the survivors. Neighbour
+//! queries go through [`PointIndex`], the crate's one kd-tree.
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Vec3};
+
+use super::PointCloud;
+use crate::spatial::PointIndex;
+
+/// AdTree's default for [`remove_near_duplicates`]: 0.001 of the diagonal.
+pub const ADTREE_DUPLICATE_FRACTION: f32 = 0.001;
+
+/// Removes points closer than `fraction_of_diagonal` × the bounding-box
+/// diagonal to an earlier kept point (AdTree uses 0.001). Of each group of
+/// near-duplicates the first in input order survives; exact copies are
+/// always duplicates. A negative or non-finite fraction is a no-op.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::remove_near_duplicates;
+///
+/// let pts = vec![Vec3::ZERO, Vec3::new(0.0, 0.0, 0.0005), Vec3::new(0.0, 0.0, 1.0)];
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts);
+/// let clean = remove_near_duplicates(&cloud, 0.001);
+/// assert_eq!(clean.points, vec![Vec3::ZERO, Vec3::new(0.0, 0.0, 1.0)]);
+/// ```
+pub fn remove_near_duplicates(cloud: &PointCloud, fraction_of_diagonal: f32) -> PointCloud {
+    let Some((lo, hi)) = cloud.bounds() else {
+        return cloud.clone();
+    };
+    let radius = fraction_of_diagonal * (hi - lo).length();
+    // A zero radius (all points equal) still removes exact duplicates.
+    if !(radius >= 0.0 && radius.is_finite()) {
+        return cloud.clone();
+    }
+    let index = PointIndex::new(&cloud.points);
+    let mut removed = vec![false; cloud.len()];
+    for (i, &p) in cloud.points.iter().enumerate() {
+        if removed[i] {
+            continue;
+        }
+        // Kept points are `radius` apart, so each point is reported by a
+        // bounded number of queries, even in duplicate-heavy clouds.
+        for n in index.within(p, radius) {
+            if n.index > i {
+                removed[n.index] = true;
+            }
+        }
+    }
+    cloud.retain_indices(|i| !removed[i])
+}
+
+/// Removes points whose mean distance to their `k` nearest neighbours
+/// exceeds the mean of that statistic over the cloud by more than
+/// `std_ratio` standard deviations (the usual choice is k = 16, ratio 2).
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::remove_statistical_outliers;
+///
+/// let mut pts: Vec<Vec3> = (0..100)
+///     .map(|i| Vec3::new((i % 10) as f32 * 0.1, (i / 10) as f32 * 0.1, 0.0))
+///     .collect();
+/// pts.push(Vec3::new(0.5, 0.5, 30.0)); // a bird
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts);
+/// let clean = remove_statistical_outliers(&cloud, 8, 2.0);
+/// assert_eq!(clean.len(), 100);
+/// assert!(clean.points.iter().all(|p| p.z == 0.0));
+/// ```
+pub fn remove_statistical_outliers(cloud: &PointCloud, k: usize, std_ratio: f32) -> PointCloud {
+    if k == 0 || cloud.len() <= k || !std_ratio.is_finite() {
+        return cloud.clone();
+    }
+    let index = PointIndex::new(&cloud.points);
+    let mean_dist: Vec<f64> = cloud
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| mean_neighbour_distance(&index, i, p, k))
+        .collect();
+    let n = mean_dist.len() as f64;
+    let mean = mean_dist.iter().sum::<f64>() / n;
+    let var = mean_dist.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / n;
+    let threshold = mean + f64::from(std_ratio) * var.sqrt();
+    cloud.retain_indices(|i| mean_dist[i] <= threshold)
+}
+
+/// Mean distance from point `i` to its `k` nearest other points.
+fn mean_neighbour_distance(index: &PointIndex, i: usize, p: Vec3, k: usize) -> f64 {
+    let near = index.nearest_k(p, k + 1);
+    // Skip the point itself; with exact duplicates it need not come first,
+    // and any one zero-distance entry stands for it equally well.
+    let self_pos = near
+        .iter()
+        .position(|n| n.index == i)
+        .unwrap_or(near.len() - 1);
+    let sum: f64 = near
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != self_pos)
+        .map(|(_, n)| f64::from(n.distance_sq).sqrt())
+        .sum();
+    sum / k as f64
+}
+
+/// Keeps one point per cubic voxel of edge `voxel_m`: the point nearest the
+/// centroid of the voxel's points, so that attributes stay real. Survivors
+/// keep their input order. A non-positive or non-finite size is a no-op.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::voxel_downsample;
+///
+/// let pts = vec![Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.45, 0.5, 0.5), Vec3::new(1.5, 0.2, 0.2)];
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts);
+/// let down = voxel_downsample(&cloud, 1.0);
+/// assert_eq!(down.points, vec![Vec3::new(0.45, 0.5, 0.5), Vec3::new(1.5, 0.2, 0.2)]);
+/// ```
+pub fn voxel_downsample(cloud: &PointCloud, voxel_m: f32) -> PointCloud {
+    if !(voxel_m > 0.0 && voxel_m.is_finite()) {
+        return cloud.clone();
+    }
+    // `as` saturates, so far-away or huge coordinates share edge voxels
+    // rather than overflow.
+    let key = |p: Vec3| {
+        let v = (p / voxel_m).floor();
+        IVec3::new(v.x as i32, v.y as i32, v.z as i32)
+    };
+    let mut voxels: HashMap<IVec3, (Vec3, u32)> = HashMap::new();
+    for &p in &cloud.points {
+        let e = voxels.entry(key(p)).or_insert((Vec3::ZERO, 0));
+        e.0 += p;
+        e.1 += 1;
+    }
+    let mut best: HashMap<IVec3, (usize, f32)> = HashMap::with_capacity(voxels.len());
+    for (i, &p) in cloud.points.iter().enumerate() {
+        let k = key(p);
+        let (sum, count) = voxels[&k];
+        let d = p.distance_squared(sum / count as f32);
+        let e = best.entry(k).or_insert((i, d));
+        if d < e.1 {
+            *e = (i, d);
+        }
+    }
+    let mut keep: Vec<usize> = best.into_values().map(|(i, _)| i).collect();
+    keep.sort_unstable();
+    cloud.select(&keep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    fn cloud(points: Vec<Vec3>) -> PointCloud {
+        let n = points.len();
+        let mut c = PointCloud::from_points(DVec3::new(85_000.0, 446_000.0, 0.0), points);
+        c.classification = Some((0..n).map(|i| i as u8).collect());
+        c
+    }
+
+    #[test]
+    fn near_duplicates_use_the_bounding_box_diagonal() {
+        // Diagonal 10 m: the radius is 1 cm at AdTree's 0.001.
+        let c = cloud(vec![
+            Vec3::ZERO,
+            Vec3::new(0.009, 0.0, 0.0),
+            Vec3::new(0.02, 0.0, 0.0),
+            Vec3::new(10.0, 0.0, 0.0),
+        ]);
+        let out = remove_near_duplicates(&c, ADTREE_DUPLICATE_FRACTION);
+        assert_eq!(out.classification, Some(vec![0, 2, 3]));
+    }
+
+    #[test]
+    fn all_identical_points_collapse_to_one() {
+        let mut c = cloud(vec![Vec3::ONE; 1000]);
+        // A zero diagonal gives a zero radius, which still catches exact copies.
+        assert_eq!(remove_near_duplicates(&c, 0.001).len(), 1);
+        c.points.push(Vec3::new(2.0, 1.0, 1.0));
+        c.classification.as_mut().unwrap().push(7);
+        let out = remove_near_duplicates(&c, 0.001);
+        assert_eq!(out.classification, Some(vec![0, 7]));
+    }
+
+    #[test]
+    fn degenerate_parameters_are_no_ops() {
+        let c = cloud(vec![Vec3::ZERO, Vec3::X, Vec3::Y]);
+        assert_eq!(voxel_downsample(&c, 0.0), c);
+        assert_eq!(voxel_downsample(&c, f32::NAN), c);
+        assert_eq!(remove_statistical_outliers(&c, 0, 2.0), c);
+        assert_eq!(remove_statistical_outliers(&c, 5, 2.0), c);
+        assert_eq!(remove_near_duplicates(&c, -1.0), c);
+        let empty = PointCloud::default();
+        assert!(remove_near_duplicates(&empty, 0.001).is_empty());
+        assert!(voxel_downsample(&empty, 1.0).is_empty());
+    }
+
+    #[test]
+    fn voxel_downsample_keeps_one_point_per_voxel() {
+        let pts: Vec<Vec3> = (0..1000)
+            .map(|i| Vec3::new((i % 10) as f32, ((i / 10) % 10) as f32, (i / 100) as f32) * 0.1)
+            .collect();
+        let out = voxel_downsample(&cloud(pts), 0.5);
+        assert_eq!(out.len(), 8);
+    }
+
+    #[test]
+    fn outliers_among_duplicates() {
+        // Exact duplicates give zero distances; the lone far point still goes.
+        let mut pts = vec![Vec3::ZERO; 50];
+        pts.extend((0..50).map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0)));
+        pts.push(Vec3::new(0.0, 0.0, 50.0));
+        let out = remove_statistical_outliers(&cloud(pts), 6, 1.0);
+        assert_eq!(out.len(), 100);
+    }
+}

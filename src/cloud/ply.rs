@@ -1,0 +1,597 @@
+//! Stanford PLY reader (ascii, binary little and big endian) and a binary
+//! little-endian writer.
+//!
+//! Two layers, as in las-rs: [`RawHeader`] mirrors the header lines as
+//! written, and [`VertexLayout`] is the validated form the point loop uses
+//! (which element holds the points, where `x y z` sit, how many bytes the
+//! body must at least hold). Only the validation knows PLY's quirks.
+//! Elements before `vertex` are skipped, elements after it are not read.
+
+use std::io::{BufRead, BufReader, Read, Seek, Write};
+
+use glam::DVec3;
+
+use super::read::{Attributes, CloudBuilder, ReadOptions, remaining_len};
+use super::{CloudError, Format, Location, PointCloud};
+
+/// Longest header accepted; real headers are a few hundred bytes.
+const MAX_HEADER: usize = 64 * 1024;
+/// Longest ascii body line accepted.
+const MAX_LINE: usize = 4096;
+
+/// How the body is encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Encoding {
+    Ascii,
+    BinaryLe,
+    BinaryBe,
+}
+
+/// A PLY scalar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn parse(name: &str) -> Option<Self> {
+        Some(match name {
+            "char" | "int8" => Self::I8,
+            "uchar" | "uint8" => Self::U8,
+            "short" | "int16" => Self::I16,
+            "ushort" | "uint16" => Self::U16,
+            "int" | "int32" => Self::I32,
+            "uint" | "uint32" => Self::U32,
+            "float" | "float32" => Self::F32,
+            "double" | "float64" => Self::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Self::I8 | Self::U8 => 1,
+            Self::I16 | Self::U16 => 2,
+            Self::I32 | Self::U32 | Self::F32 => 4,
+            Self::F64 => 8,
+        }
+    }
+
+    /// Decodes one value from exactly `self.size()` bytes.
+    fn decode(self, b: &[u8], enc: Encoding) -> f64 {
+        macro_rules! num {
+            ($t:ty, $n:literal) => {{
+                let mut a = [0u8; $n];
+                a.copy_from_slice(&b[..$n]);
+                if enc == Encoding::BinaryBe {
+                    <$t>::from_be_bytes(a) as f64
+                } else {
+                    <$t>::from_le_bytes(a) as f64
+                }
+            }};
+        }
+        match self {
+            Self::I8 => num!(i8, 1),
+            Self::U8 => num!(u8, 1),
+            Self::I16 => num!(i16, 2),
+            Self::U16 => num!(u16, 2),
+            Self::I32 => num!(i32, 4),
+            Self::U32 => num!(u32, 4),
+            Self::F32 => num!(f32, 4),
+            Self::F64 => num!(f64, 8),
+        }
+    }
+}
+
+/// A property line: `property TYPE NAME` or `property list COUNT ITEM NAME`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum RawProperty {
+    Scalar {
+        ty: Scalar,
+        name: String,
+    },
+    List {
+        count: Scalar,
+        item: Scalar,
+        name: String,
+    },
+}
+
+/// An `element NAME COUNT` line and its properties.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct RawElement {
+    name: String,
+    count: u64,
+    properties: Vec<RawProperty>,
+}
+
+/// The header as written, before any check of its meaning.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct RawHeader {
+    encoding: Encoding,
+    elements: Vec<RawElement>,
+    /// Header length in bytes, including `end_header` and its newline.
+    len: u64,
+    /// Number of header lines, so ascii body lines can be numbered.
+    lines: u64,
+}
+
+/// Which vertex property feeds which output field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    X,
+    Y,
+    Z,
+    Intensity,
+    ReturnNumber,
+    Classification,
+    Ignored,
+}
+
+/// The validated vertex layout the point loop follows.
+#[derive(Debug)]
+struct VertexLayout {
+    encoding: Encoding,
+    /// Elements before `vertex`, to be skipped.
+    skipped: Vec<RawElement>,
+    count: u64,
+    properties: Vec<(RawProperty, Role)>,
+    attrs: Attributes,
+}
+
+fn malformed(location: Location, reason: impl Into<String>) -> CloudError {
+    CloudError::Malformed {
+        format: Format::Ply,
+        location,
+        reason: reason.into(),
+    }
+}
+
+/// Reads a PLY file.
+pub(super) fn read<R: Read + Seek>(
+    mut input: R,
+    opts: &ReadOptions,
+) -> Result<PointCloud, CloudError> {
+    let file_len = remaining_len(&mut input)?;
+    let mut reader = BufReader::new(input);
+    let raw = read_raw_header(&mut reader)?;
+    let layout = validate(&raw, opts)?;
+    let body_len = file_len.saturating_sub(raw.len);
+    let min_vertex = min_binary_size(
+        &layout
+            .properties
+            .iter()
+            .map(|(p, _)| p.clone())
+            .collect::<Vec<_>>(),
+    );
+    // Ascii vertices need at least two bytes per coordinate ("0 0 0\n").
+    let per_vertex = match layout.encoding {
+        Encoding::Ascii => 6,
+        _ => min_vertex.max(1),
+    };
+    let fits = body_len / per_vertex as u64;
+    if layout.encoding != Encoding::Ascii && layout.skipped.is_empty() && layout.count > fits {
+        return Err(malformed(
+            Location::Byte(raw.len),
+            format!(
+                "header promises {} vertices of at least {min_vertex} bytes, but only {body_len} bytes follow the header",
+                layout.count
+            ),
+        ));
+    }
+    let expected = layout.count.min(fits);
+    let mut builder = CloudBuilder::new(Format::Ply, opts, expected, layout.attrs);
+    match layout.encoding {
+        Encoding::Ascii => read_ascii_body(&mut reader, &raw, &layout, &mut builder)?,
+        enc => read_binary_body(&mut reader, raw.len, enc, &layout, &mut builder)?,
+    }
+    Ok(builder.finish())
+}
+
+/// Reads one header line (without its line ending), capped in length.
+fn header_line<R: BufRead>(reader: &mut R, consumed: &mut u64) -> Result<String, CloudError> {
+    let mut buf = Vec::new();
+    let remaining = (MAX_HEADER as u64).saturating_sub(*consumed);
+    let n = reader.take(remaining).read_until(b'\n', &mut buf)?;
+    if n == 0 || buf.last() != Some(&b'\n') {
+        return Err(malformed(
+            Location::Byte(*consumed + n as u64),
+            if *consumed + n as u64 >= MAX_HEADER as u64 {
+                format!("header longer than {MAX_HEADER} bytes")
+            } else {
+                "file ends inside the header (no end_header)".to_owned()
+            },
+        ));
+    }
+    *consumed += n as u64;
+    let text = std::str::from_utf8(&buf)
+        .map_err(|_| malformed(Location::Byte(*consumed), "header is not text"))?;
+    Ok(text.trim_end_matches(['\n', '\r']).to_owned())
+}
+
+/// Parses the header lines into a [`RawHeader`].
+fn read_raw_header<R: BufRead>(reader: &mut R) -> Result<RawHeader, CloudError> {
+    let mut consumed = 0u64;
+    let mut lines = 0u64;
+    let mut encoding = None;
+    let mut elements: Vec<RawElement> = Vec::new();
+    loop {
+        let line = header_line(reader, &mut consumed)?;
+        lines += 1;
+        let at = Location::Line(lines);
+        let words: Vec<&str> = line.split_ascii_whitespace().collect();
+        match words.as_slice() {
+            ["ply"] if lines == 1 => {}
+            _ if lines == 1 => return Err(malformed(at, "does not start with \"ply\"")),
+            ["format", enc, "1.0"] => {
+                encoding = Some(match *enc {
+                    "ascii" => Encoding::Ascii,
+                    "binary_little_endian" => Encoding::BinaryLe,
+                    "binary_big_endian" => Encoding::BinaryBe,
+                    other => return Err(malformed(at, format!("unknown encoding {other:?}"))),
+                });
+            }
+            ["comment", ..] | ["obj_info", ..] | [] => {}
+            ["element", name, count] => {
+                let count = count
+                    .parse::<u64>()
+                    .map_err(|_| malformed(at, format!("bad element count {count:?}")))?;
+                elements.push(RawElement {
+                    name: (*name).to_owned(),
+                    count,
+                    properties: Vec::new(),
+                });
+            }
+            ["property", rest @ ..] => {
+                let property = parse_property(rest).map_err(|reason| malformed(at, reason))?;
+                let element = elements
+                    .last_mut()
+                    .ok_or_else(|| malformed(at, "property before any element"))?;
+                element.properties.push(property);
+            }
+            ["end_header"] => break,
+            _ => {
+                return Err(malformed(
+                    at,
+                    format!("unexpected header line {:?}", truncate(&line)),
+                ));
+            }
+        }
+    }
+    let encoding = encoding.ok_or_else(|| malformed(Location::Header, "no format line"))?;
+    Ok(RawHeader {
+        encoding,
+        elements,
+        len: consumed,
+        lines,
+    })
+}
+
+fn truncate(s: &str) -> String {
+    s.chars().take(40).collect()
+}
+
+fn parse_property(words: &[&str]) -> Result<RawProperty, String> {
+    let ty = |w: &str| {
+        Scalar::parse(w).ok_or_else(|| format!("unknown property type {:?}", truncate(w)))
+    };
+    match words {
+        ["list", count, item, name] => Ok(RawProperty::List {
+            count: ty(count)?,
+            item: ty(item)?,
+            name: (*name).to_owned(),
+        }),
+        [t, name] => Ok(RawProperty::Scalar {
+            ty: ty(t)?,
+            name: (*name).to_owned(),
+        }),
+        _ => Err("malformed property line".to_owned()),
+    }
+}
+
+/// Checks the raw header's meaning: a vertex element with scalar x, y, z
+/// within the point limit.
+fn validate(raw: &RawHeader, opts: &ReadOptions) -> Result<VertexLayout, CloudError> {
+    let index = raw
+        .elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| malformed(Location::Header, "no vertex element"))?;
+    let vertex = &raw.elements[index];
+    if vertex.count > opts.max_points as u64 {
+        return Err(CloudError::TooManyPoints {
+            format: Format::Ply,
+            limit: opts.max_points,
+        });
+    }
+    let mut attrs = Attributes::default();
+    let mut properties = Vec::with_capacity(vertex.properties.len());
+    for p in &vertex.properties {
+        let role = match p {
+            RawProperty::Scalar { name, .. } => match name.as_str() {
+                "x" => Role::X,
+                "y" => Role::Y,
+                "z" => Role::Z,
+                "intensity" => {
+                    attrs.intensity = Some(0);
+                    Role::Intensity
+                }
+                "return_number" => {
+                    attrs.return_number = Some(1);
+                    Role::ReturnNumber
+                }
+                "classification" => {
+                    attrs.classification = Some(1);
+                    Role::Classification
+                }
+                _ => Role::Ignored,
+            },
+            RawProperty::List { .. } => Role::Ignored,
+        };
+        properties.push((p.clone(), role));
+    }
+    for (axis, role) in [("x", Role::X), ("y", Role::Y), ("z", Role::Z)] {
+        let n = properties.iter().filter(|(_, r)| *r == role).count();
+        if n != 1 {
+            return Err(malformed(
+                Location::Header,
+                format!("vertex element needs exactly one scalar {axis} property, found {n}"),
+            ));
+        }
+    }
+    Ok(VertexLayout {
+        encoding: raw.encoding,
+        skipped: raw.elements[..index].to_vec(),
+        count: vertex.count,
+        properties,
+        attrs,
+    })
+}
+
+/// Smallest binary size of one item (lists counted as empty).
+fn min_binary_size(properties: &[RawProperty]) -> usize {
+    properties
+        .iter()
+        .map(|p| match p {
+            RawProperty::Scalar { ty, .. } => ty.size(),
+            RawProperty::List { count, .. } => count.size(),
+        })
+        .sum()
+}
+
+/// Collects one vertex's values into a point and its attributes.
+#[derive(Default)]
+struct VertexValues {
+    xyz: [f64; 3],
+    attrs: Attributes,
+}
+
+impl VertexValues {
+    fn set(&mut self, role: Role, v: f64) {
+        match role {
+            Role::X => self.xyz[0] = v,
+            Role::Y => self.xyz[1] = v,
+            Role::Z => self.xyz[2] = v,
+            // `as` saturates, which is the right clamp for out-of-range attributes.
+            Role::Intensity => self.attrs.intensity = Some(v as u16),
+            Role::ReturnNumber => self.attrs.return_number = Some(v as u8),
+            Role::Classification => self.attrs.classification = Some(v as u8),
+            Role::Ignored => {}
+        }
+    }
+}
+
+/// Binary body: skip earlier elements, then decode vertices.
+fn read_binary_body<R: Read>(
+    reader: &mut R,
+    header_len: u64,
+    enc: Encoding,
+    layout: &VertexLayout,
+    builder: &mut CloudBuilder,
+) -> Result<(), CloudError> {
+    let mut pos = header_len;
+    for element in &layout.skipped {
+        // An element without properties occupies no bytes, whatever its count.
+        let count = if element.properties.is_empty() {
+            0
+        } else {
+            element.count
+        };
+        for _ in 0..count {
+            for p in &element.properties {
+                read_binary_property(reader, &mut pos, enc, p)?;
+            }
+        }
+    }
+    for i in 0..layout.count {
+        let start = pos;
+        let mut values = VertexValues::default();
+        for (p, role) in &layout.properties {
+            let v = read_binary_property(reader, &mut pos, enc, p).map_err(|e| match e {
+                CloudError::Malformed { location, .. } => malformed(
+                    location,
+                    format!("file ends inside vertex {i} of {}", layout.count),
+                ),
+                other => other,
+            })?;
+            values.set(*role, v);
+        }
+        builder.push(
+            DVec3::from_array(values.xyz),
+            values.attrs,
+            Location::Byte(start),
+        )?;
+    }
+    Ok(())
+}
+
+/// Reads one property (a list is skipped and yields 0).
+fn read_binary_property<R: Read>(
+    reader: &mut R,
+    pos: &mut u64,
+    enc: Encoding,
+    p: &RawProperty,
+) -> Result<f64, CloudError> {
+    match p {
+        RawProperty::Scalar { ty, .. } => read_scalar(reader, pos, enc, *ty),
+        RawProperty::List { count, item, .. } => {
+            let n = read_scalar(reader, pos, enc, *count)?;
+            if !(0.0..=u32::MAX as f64).contains(&n) {
+                return Err(malformed(
+                    Location::Byte(*pos),
+                    format!("bad list length {n}"),
+                ));
+            }
+            let bytes = n as u64 * item.size() as u64;
+            let skipped = std::io::copy(&mut reader.take(bytes), &mut std::io::sink())?;
+            *pos += skipped;
+            if skipped < bytes {
+                return Err(malformed(Location::Byte(*pos), "file ends inside a list"));
+            }
+            Ok(0.0)
+        }
+    }
+}
+
+fn read_scalar<R: Read>(
+    reader: &mut R,
+    pos: &mut u64,
+    enc: Encoding,
+    ty: Scalar,
+) -> Result<f64, CloudError> {
+    let mut buf = [0u8; 8];
+    let b = &mut buf[..ty.size()];
+    reader.read_exact(b).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => {
+            malformed(Location::Byte(*pos), "unexpected end of file")
+        }
+        _ => CloudError::Io(e),
+    })?;
+    *pos += ty.size() as u64;
+    Ok(ty.decode(b, enc))
+}
+
+/// Ascii body: one line per item; earlier elements are skipped line by line.
+fn read_ascii_body<R: BufRead>(
+    reader: &mut R,
+    raw: &RawHeader,
+    layout: &VertexLayout,
+    builder: &mut CloudBuilder,
+) -> Result<(), CloudError> {
+    let mut line_no = raw.lines;
+    let mut line = Vec::new();
+    let mut next_line =
+        |line: &mut Vec<u8>, what: &dyn Fn() -> String| -> Result<u64, CloudError> {
+            line.clear();
+            let n = reader.take(MAX_LINE as u64 + 1).read_until(b'\n', line)?;
+            line_no += 1;
+            if n == 0 {
+                return Err(malformed(
+                    Location::Line(line_no),
+                    format!("file ends before {}", what()),
+                ));
+            }
+            if n > MAX_LINE {
+                return Err(malformed(
+                    Location::Line(line_no),
+                    format!("line longer than {MAX_LINE} bytes"),
+                ));
+            }
+            Ok(line_no)
+        };
+    for element in &layout.skipped {
+        for i in 0..element.count {
+            next_line(&mut line, &|| {
+                format!("{} {i} of {}", element.name, element.count)
+            })?;
+        }
+    }
+    for i in 0..layout.count {
+        let at = Location::Line(next_line(&mut line, &|| {
+            format!("vertex {i} of {}", layout.count)
+        })?);
+        let values = parse_ascii_vertex(&line, &layout.properties)
+            .map_err(|reason| malformed(at, reason))?;
+        builder.push(DVec3::from_array(values.xyz), values.attrs, at)?;
+    }
+    Ok(())
+}
+
+fn parse_ascii_vertex(
+    line: &[u8],
+    properties: &[(RawProperty, Role)],
+) -> Result<VertexValues, String> {
+    let text = std::str::from_utf8(line).map_err(|_| "not UTF-8 text".to_owned())?;
+    let mut words = text.split_ascii_whitespace();
+    let mut next = |what: &str| -> Result<f64, String> {
+        let w = words
+            .next()
+            .ok_or_else(|| format!("missing value for {what}"))?;
+        w.parse::<f64>()
+            .map_err(|_| format!("not a number: {:?}", truncate(w)))
+    };
+    let mut values = VertexValues::default();
+    for (p, role) in properties {
+        match p {
+            RawProperty::Scalar { name, .. } => values.set(*role, next(name)?),
+            RawProperty::List { name, .. } => {
+                let n = next(name)?;
+                if !(0.0..=MAX_LINE as f64).contains(&n) || n.fract() != 0.0 {
+                    return Err(format!("bad list length {n}"));
+                }
+                for _ in 0..n as usize {
+                    next(name)?;
+                }
+            }
+        }
+    }
+    Ok(values)
+}
+
+/// Writes binary little-endian PLY with absolute `double` coordinates and,
+/// when present, `intensity`, `return_number` and `classification`.
+pub(super) fn write<W: Write>(cloud: &PointCloud, mut out: W) -> Result<(), CloudError> {
+    writeln!(
+        out,
+        "ply\nformat binary_little_endian 1.0\ncomment written by silva"
+    )?;
+    writeln!(out, "element vertex {}", cloud.len())?;
+    writeln!(
+        out,
+        "property double x\nproperty double y\nproperty double z"
+    )?;
+    if cloud.intensity.is_some() {
+        writeln!(out, "property ushort intensity")?;
+    }
+    if cloud.return_number.is_some() {
+        writeln!(out, "property uchar return_number")?;
+    }
+    if cloud.classification.is_some() {
+        writeln!(out, "property uchar classification")?;
+    }
+    writeln!(out, "end_header")?;
+    for i in 0..cloud.len() {
+        let p = cloud.absolute(i);
+        for c in p.to_array() {
+            out.write_all(&c.to_le_bytes())?;
+        }
+        if let Some(v) = &cloud.intensity {
+            out.write_all(&v[i].to_le_bytes())?;
+        }
+        if let Some(v) = &cloud.return_number {
+            out.write_all(&[v[i]])?;
+        }
+        if let Some(v) = &cloud.classification {
+            out.write_all(&[v[i]])?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}

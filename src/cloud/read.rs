@@ -1,0 +1,320 @@
+//! Reading point clouds: format detection by content, and the shared
+//! bounded accumulator every reader feeds.
+//!
+//! Readers never trust a header: point counts only size allocations after
+//! they are capped by the configured point limit *and* by what the file can
+//! physically hold, so a 100-byte file claiming 4 billion points costs
+//! nothing. Every coordinate is checked to be finite where it is read, so
+//! downstream stages (the kd-tree, reconstruction) may assume finite input.
+
+use std::fs::File;
+use std::io::{BufReader, Cursor, Read, Seek, SeekFrom};
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+use super::{CloudError, Format, Location, PointCloud, lasfile, ply, xyz};
+
+/// Limits applied while reading.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Largest number of points a reader accepts before it stops with
+    /// [`CloudError::TooManyPoints`]. Memory use is about 16 bytes per point.
+    pub max_points: usize,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        Self {
+            max_points: 50_000_000,
+        }
+    }
+}
+
+/// LAS facts worth reporting (`silva info`).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct LasDetails {
+    /// LAS version, e.g. `"1.2"`.
+    pub version: String,
+    /// Point data record format (0–10), without the compression bit.
+    pub point_format: u8,
+}
+
+/// What a reader found besides the points.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FileDetails {
+    /// The detected format.
+    pub format: Format,
+    /// Header facts for LAS and LAZ input.
+    pub las: Option<LasDetails>,
+}
+
+/// How many leading bytes [`detect`] needs to decide.
+pub const DETECT_LEN: usize = 4096;
+
+/// Detects the format from the first bytes of a file (up to [`DETECT_LEN`]).
+///
+/// LAS/LAZ start with `LASF` (LAZ sets a compression bit in the point format
+/// byte), PLY starts with a `ply` line, and anything else that looks like
+/// text is taken as XYZ. An empty input counts as (empty) XYZ text.
+///
+/// ```
+/// use silva::cloud::{Format, detect};
+///
+/// assert_eq!(detect(b"ply\nformat ascii 1.0\n"), Some(Format::Ply));
+/// assert_eq!(detect(b"1.0 2.0 3.0\n"), Some(Format::Xyz));
+/// assert_eq!(detect(&[0xff, 0x00, 0x13]), None);
+/// ```
+pub fn detect(head: &[u8]) -> Option<Format> {
+    const POINT_FORMAT_BYTE: usize = 104;
+    if head.starts_with(b"LASF") {
+        // Bit 7 (LASzip) or bit 6 (old LASzip) of the point format id.
+        let compressed = head
+            .get(POINT_FORMAT_BYTE)
+            .is_some_and(|b| b & 0b1100_0000 != 0);
+        return Some(if compressed { Format::Laz } else { Format::Las });
+    }
+    if head.starts_with(b"ply\n") || head.starts_with(b"ply\r\n") {
+        return Some(Format::Ply);
+    }
+    looks_like_text(head).then_some(Format::Xyz)
+}
+
+/// UTF-8 without control characters other than tab, CR and LF. A multi-byte
+/// character cut off by the end of `head` is allowed.
+fn looks_like_text(head: &[u8]) -> bool {
+    let valid = match std::str::from_utf8(head) {
+        Ok(s) => s,
+        Err(e) if e.error_len().is_none() => {
+            // Only an incomplete character at the very end.
+            std::str::from_utf8(&head[..e.valid_up_to()]).unwrap_or_default()
+        }
+        Err(_) => return false,
+    };
+    valid
+        .chars()
+        .all(|c| !c.is_control() || matches!(c, '\t' | '\r' | '\n'))
+}
+
+/// Reads a point cloud, detecting the format from its content.
+///
+/// ```
+/// use std::io::Cursor;
+/// use silva::cloud::{Format, ReadOptions, read};
+///
+/// let text = "# x y z\n100.5 200.25 3\n101.5,200.25,4\n";
+/// let (cloud, format) = read(Cursor::new(text), &ReadOptions::default()).unwrap();
+/// assert_eq!((format, cloud.len()), (Format::Xyz, 2));
+/// assert_eq!(cloud.absolute(1).x, 101.5);
+/// ```
+pub fn read<R: Read + Seek + Send + Sync>(
+    input: R,
+    opts: &ReadOptions,
+) -> Result<(PointCloud, Format), CloudError> {
+    read_with_details(input, opts).map(|(cloud, details)| (cloud, details.format))
+}
+
+/// Like [`read`], and also returns header details (LAS version, …).
+pub fn read_with_details<R: Read + Seek + Send + Sync>(
+    mut input: R,
+    opts: &ReadOptions,
+) -> Result<(PointCloud, FileDetails), CloudError> {
+    let start = input.stream_position()?;
+    let mut head = Vec::with_capacity(DETECT_LEN);
+    (&mut input)
+        .take(DETECT_LEN as u64)
+        .read_to_end(&mut head)?;
+    let format = detect(&head).ok_or_else(|| {
+        CloudError::UnknownFormat(format!(
+            "the first bytes are neither LAS/LAZ, PLY nor text (starts with {})",
+            hex_preview(&head)
+        ))
+    })?;
+    input.seek(SeekFrom::Start(start))?;
+    read_as_with_details(input, format, opts)
+}
+
+/// Reads input known to be in `format`, skipping detection (fuzzing, tests).
+/// For [`Format::Las`] and [`Format::Laz`] the header decides compression.
+pub fn read_as<R: Read + Seek + Send + Sync>(
+    input: R,
+    format: Format,
+    opts: &ReadOptions,
+) -> Result<PointCloud, CloudError> {
+    read_as_with_details(input, format, opts).map(|(cloud, _)| cloud)
+}
+
+fn read_as_with_details<R: Read + Seek + Send + Sync>(
+    input: R,
+    format: Format,
+    opts: &ReadOptions,
+) -> Result<(PointCloud, FileDetails), CloudError> {
+    let (cloud, details) = match format {
+        Format::Xyz => (xyz::read(input, opts)?, FileDetails { format, las: None }),
+        Format::Ply => (ply::read(input, opts)?, FileDetails { format, las: None }),
+        Format::Las | Format::Laz => lasfile::read(input, opts)?,
+    };
+    if cloud.is_empty() {
+        return Err(CloudError::Empty(details.format));
+    }
+    Ok((cloud, details))
+}
+
+/// Reads a file, detecting the format from its content (never its name).
+pub fn read_path(path: &Path, opts: &ReadOptions) -> Result<(PointCloud, Format), CloudError> {
+    read_path_with_details(path, opts).map(|(cloud, details)| (cloud, details.format))
+}
+
+/// Like [`read_path`], and also returns header details.
+pub fn read_path_with_details(
+    path: &Path,
+    opts: &ReadOptions,
+) -> Result<(PointCloud, FileDetails), CloudError> {
+    let file = File::open(path)?;
+    read_with_details(BufReader::new(file), opts)
+}
+
+/// Reads a point cloud held in memory (an HTTP upload), detecting the format.
+pub fn read_bytes(bytes: &[u8], opts: &ReadOptions) -> Result<(PointCloud, Format), CloudError> {
+    read(Cursor::new(bytes), opts)
+}
+
+/// The first bytes in hex, for error messages about unknown content.
+fn hex_preview(head: &[u8]) -> String {
+    let shown: Vec<String> = head.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    if shown.is_empty() {
+        "nothing".to_owned()
+    } else {
+        format!("0x{}", shown.join(""))
+    }
+}
+
+/// Remaining bytes from the current position to the end of the stream; the
+/// position is left unchanged.
+pub(super) fn remaining_len<R: Seek>(input: &mut R) -> Result<u64, CloudError> {
+    let here = input.stream_position()?;
+    let end = input.seek(SeekFrom::End(0))?;
+    input.seek(SeekFrom::Start(here))?;
+    Ok(end.saturating_sub(here))
+}
+
+/// Optional per-point attributes in the order a reader produces them.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Attributes {
+    pub(super) intensity: Option<u16>,
+    pub(super) return_number: Option<u8>,
+    pub(super) classification: Option<u8>,
+}
+
+/// Largest absolute coordinate accepted: beyond any projected or geocentric
+/// CRS in metres, so larger values are corrupt data.
+const MAX_ABS_M: f64 = 1e9;
+/// Largest distance from the first point: relative `f32` coordinates keep
+/// 1 mm resolution to about 8 km and 8 mm at 100 km; beyond that the cloud
+/// is not a tree or a tile, and the coordinates would be meaningless.
+const MAX_SPAN_M: f64 = 1e5;
+
+/// Collects absolute points into a [`PointCloud`] under the point limit.
+///
+/// The offset is the first point rounded to whole metres, so that relative
+/// `f32` coordinates stay sub-millimetre for anything within a few km of it.
+/// Attribute columns exist when the reader said so at construction: `with`
+/// holds, per column, the value used when a point does not supply one.
+pub(super) struct CloudBuilder {
+    format: Format,
+    limit: usize,
+    cloud: PointCloud,
+    with: Attributes,
+}
+
+impl CloudBuilder {
+    /// `expected` only sizes the first allocation; callers cap it by what
+    /// the file can hold. `with` marks the attribute columns to fill.
+    pub(super) fn new(format: Format, opts: &ReadOptions, expected: u64, with: Attributes) -> Self {
+        let cap = usize::try_from(expected)
+            .unwrap_or(usize::MAX)
+            .min(opts.max_points);
+        let mut cloud = PointCloud::default();
+        cloud.points.reserve(cap);
+        cloud.intensity = with.intensity.map(|_| Vec::with_capacity(cap));
+        cloud.return_number = with.return_number.map(|_| Vec::with_capacity(cap));
+        cloud.classification = with.classification.map(|_| Vec::with_capacity(cap));
+        Self {
+            format,
+            limit: opts.max_points,
+            cloud,
+            with,
+        }
+    }
+
+    /// Adds one point; rejects non-finite coordinates and enforces the limit.
+    pub(super) fn push(
+        &mut self,
+        p: DVec3,
+        attrs: Attributes,
+        location: Location,
+    ) -> Result<(), CloudError> {
+        let cloud = &mut self.cloud;
+        let reason = if !p.is_finite() {
+            Some(format!("non-finite coordinate ({}, {}, {})", p.x, p.y, p.z))
+        } else if p.abs().max_element() > MAX_ABS_M {
+            Some(format!(
+                "implausible coordinate ({}, {}, {}) m",
+                p.x, p.y, p.z
+            ))
+        } else if !cloud.is_empty() && (p - cloud.offset).abs().max_element() > MAX_SPAN_M {
+            Some(format!(
+                "point ({}, {}, {}) lies more than {} km from the first point",
+                p.x,
+                p.y,
+                p.z,
+                MAX_SPAN_M / 1000.0
+            ))
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            return Err(CloudError::Malformed {
+                format: self.format,
+                location,
+                reason,
+            });
+        }
+        if cloud.points.len() >= self.limit {
+            return Err(CloudError::TooManyPoints {
+                format: self.format,
+                limit: self.limit,
+            });
+        }
+        if cloud.points.is_empty() {
+            cloud.offset = p.round();
+        }
+        let rel: Vec3 = (p - cloud.offset).as_vec3();
+        cloud.points.push(rel);
+        push_attr(&mut cloud.intensity, attrs.intensity, self.with.intensity);
+        push_attr(
+            &mut cloud.return_number,
+            attrs.return_number,
+            self.with.return_number,
+        );
+        push_attr(
+            &mut cloud.classification,
+            attrs.classification,
+            self.with.classification,
+        );
+        Ok(())
+    }
+
+    /// The finished cloud (possibly empty; callers report emptiness).
+    pub(super) fn finish(self) -> PointCloud {
+        self.cloud
+    }
+}
+
+/// Appends `value` to a present column, or the column default when the
+/// reader did not supply one for this point.
+fn push_attr<T: Copy>(column: &mut Option<Vec<T>>, value: Option<T>, default: Option<T>) {
+    if let (Some(col), Some(d)) = (column.as_mut(), default) {
+        col.push(value.unwrap_or(d));
+    }
+}
