@@ -9,6 +9,7 @@ use mesh_support::random_tree;
 use serde_json::{Map, Value, json};
 use silva::cityjson::{self, CityJsonError, TreeInfo};
 use silva::mesh::{self, Lod};
+use silva::synth::{Species, TreeParams, generate};
 use silva::{Anchor, NodeId, Skeleton};
 
 /// Every check's failures, errors and warnings alike, as readable lines.
@@ -71,6 +72,20 @@ fn single_tree_documents_validate_at_every_lod() {
             let doc = cityjson::city_json(&info, lods);
             assert_valid(&doc.to_string());
         }
+    }
+}
+
+#[test]
+fn weber_penn_trees_validate() {
+    let anchor = Anchor {
+        origin: DVec3::new(155_000.0, 463_000.0, 0.0),
+        crs: Some("EPSG:28992".into()),
+    };
+    for species in [Species::Birch, Species::Pine] {
+        let tree = generate(&TreeParams::preset(species), 1, anchor.clone());
+        let mut info = TreeInfo::new(species.name(), &tree);
+        info.species = Some(species.name().into());
+        assert_valid(&cityjson::city_json(&info, &[Lod::L0, Lod::L3]).to_string());
     }
 }
 

@@ -9,12 +9,25 @@ use std::collections::HashMap;
 use glam::{DVec3, Vec3};
 use mesh_support::random_tree;
 use silva::mesh::{self, Lod, Mesh, MeshFormat};
+use silva::synth::{Species, TreeParams, generate};
 use silva::{Anchor, NodeId, Skeleton};
 
 const SEEDS: [u64; 3] = [1, 7, 42];
 
+/// Random pipe-model trees and the Weber–Penn presets of `silva::synth`.
 fn trees() -> Vec<Skeleton> {
-    SEEDS.iter().map(|&s| random_tree(s, 800)).collect()
+    let anchor = Anchor {
+        origin: DVec3::new(155_000.0, 463_000.0, 0.0),
+        crs: Some("EPSG:28992".into()),
+    };
+    let synth = Species::ALL
+        .iter()
+        .map(|&s| generate(&TreeParams::preset(s), 3, anchor.clone()));
+    SEEDS
+        .iter()
+        .map(|&s| random_tree(s, 800))
+        .chain(synth)
+        .collect()
 }
 
 fn triangle_area(m: &Mesh, [a, b, c]: [u32; 3]) -> f32 {

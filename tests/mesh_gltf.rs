@@ -14,6 +14,7 @@ use glam::{DVec3, Vec3};
 use mesh_support::random_tree;
 use serde_json::Value;
 use silva::mesh::{self, Lod};
+use silva::synth::{Species, TreeParams, generate};
 use silva::{Anchor, NodeId, Skeleton};
 
 /// The GLB's JSON document and binary chunk, checking the container.
@@ -98,8 +99,9 @@ fn empty_mesh_is_a_node_without_geometry() {
     assert!(json["nodes"][0].get("mesh").is_none());
 }
 
-/// The GLB files the validator checks: several trees at every LOD, a big
-/// tree with 32-bit indices, a tiny fork, and a skeleton without internodes.
+/// The GLB files the validator checks: several random trees at every LOD,
+/// one with 32-bit indices, the Weber–Penn species presets, a tiny fork,
+/// and a skeleton without internodes.
 fn sample_glbs(dir: &Path) -> Vec<PathBuf> {
     let mut files = Vec::new();
     let mut write = |name: String, bytes: Vec<u8>| {
@@ -120,6 +122,14 @@ fn sample_glbs(dir: &Path) -> Vec<PathBuf> {
             format!("tree{seed}_absolute.glb"),
             mesh::glb(&m, tree.anchor(), DVec3::ZERO),
         );
+    }
+    for species in Species::ALL {
+        let tree = generate(&TreeParams::preset(species), 2, Anchor::at(DVec3::ZERO));
+        for lod in [Lod::L0, Lod::L3] {
+            let m = mesh::build_mesh(&tree, lod);
+            let glb = mesh::glb(&m, tree.anchor(), tree.anchor().origin);
+            write(format!("{species}_lod{}.glb", lod.level()), glb);
+        }
     }
     let mut fork = Skeleton::new(Anchor::at(DVec3::new(155_000.0, 463_000.0, 0.0)), 0.1);
     let a = fork.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.08);
