@@ -3,6 +3,7 @@
 //! Each stage has its own typed error; [`Error`] gathers them so that the CLI
 //! prints one clear line and the API maps each variant to one HTTP status.
 
+use crate::cityjson::CityJsonError;
 use crate::cloud::CloudError;
 use crate::encode::chaincode::ChainError;
 use crate::encode::lsystem::LsError;
@@ -30,6 +31,9 @@ pub enum Error {
     /// An LsJSON document was rejected.
     #[error(transparent)]
     LsJson(#[from] LsError),
+    /// A CityJSON or CityJSONSeq output could not be written.
+    #[error(transparent)]
+    CityJson(#[from] CityJsonError),
     /// File or stream IO failed.
     #[error(transparent)]
     Io(#[from] std::io::Error),
