@@ -4,6 +4,7 @@
 //! prints one clear line and the API maps each variant to one HTTP status.
 
 use crate::cloud::CloudError;
+use crate::reconstruct::ReconstructError;
 use crate::skeleton::{SkeletonError, SkeletonJsonError};
 
 /// Any error silva's library returns.
@@ -18,6 +19,9 @@ pub enum Error {
     /// A skeleton JSON document was rejected.
     #[error(transparent)]
     SkeletonJson(#[from] SkeletonJsonError),
+    /// No skeleton could be reconstructed from a cloud.
+    #[error(transparent)]
+    Reconstruct(#[from] ReconstructError),
     /// File or stream IO failed.
     #[error(transparent)]
     Io(#[from] std::io::Error),

@@ -6,6 +6,7 @@
 use clap::{Parser, Subcommand};
 
 mod info;
+mod reconstruct;
 
 /// silva: tree skeletons from LiDAR point clouds.
 #[derive(Debug, Parser)]
@@ -19,12 +20,15 @@ pub struct Cli {
 enum Command {
     /// Print format, point count, bounding box and offset of a point cloud as JSON.
     Info(info::Args),
+    /// Reconstruct one tree's skeleton with radii and its metrics.
+    Reconstruct(reconstruct::Args),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
     }
 }
 

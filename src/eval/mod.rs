@@ -2,3 +2,5 @@
 //!
 //! Will hold skeleton-to-truth distances, branch recall and precision, and
 //! point-to-surface fit for real clouds.
+
+pub mod fit;

@@ -1,9 +1,442 @@
 //! Skeleton reconstruction from point clouds (issue 3).
 //!
-//! Will hold the dense pipeline after AdTree (lsystem-from-adtree-skeletons
-//! §2.1.1; multi-temporal-tree-growth §3.2.1), the airborne pipeline after
-//! Hu et al. (airborne-lidar-tree-modeling §3), radius fitting, and tree
-//! metrics. Plain synchronous code: no IO.
+//! [`reconstruct`] turns the point cloud of one tree into a [`Skeleton`] with
+//! radii and [`metrics::TreeMetrics`]:
+//!
+//! 1. validate the input (enough points, not on one line or plane);
+//! 2. choose a pipeline ([`Mode::Auto`] looks at point density and trunk
+//!    coverage, see [`survey`]);
+//! 3. build the skeleton: the dense pipeline after AdTree
+//!    (lsystem-from-adtree-skeletons §2.1.1; multi-temporal-tree-growth
+//!    §3.2.1), see [`dense`];
+//! 4. assign radii with the shared stage in [`radii`]: a robust trunk circle
+//!    fit (or an allometric estimate, flagged) and the pipe model of
+//!    airborne-lidar-tree-modeling §5.5, Eq. 6;
+//! 5. compute per-tree metrics in [`metrics`].
+//!
+//! Plain synchronous code without IO. The z axis is assumed to point up and
+//! the cloud to hold one tree; inputs that break this assumption get a
+//! [`ReconstructError`] or a flagged best effort in [`Reconstruction::notes`].
 
+use glam::{DVec3, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::cloud::PointCloud;
+use crate::skeleton::Skeleton;
+
+pub mod dense;
 mod error;
+pub mod metrics;
+pub mod radii;
+
 pub use error::ReconstructError;
+
+/// Fewest points any pipeline accepts: below this there is no tree shape.
+pub const MIN_POINTS: usize = 10;
+
+/// Which reconstruction pipeline to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    /// Choose from point density and trunk coverage (see [`survey`]).
+    #[default]
+    Auto,
+    /// Terrestrial or mobile scans: the AdTree-style pipeline in [`dense`].
+    Dense,
+    /// Sparse airborne scans with a thin or missing trunk (Hu et al.).
+    Airborne,
+}
+
+impl Mode {
+    /// The lowercase name used on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Auto => "auto",
+            Mode::Dense => "dense",
+            Mode::Airborne => "airborne",
+        }
+    }
+}
+
+/// Settings of a reconstruction. `Options::default()` suits both scan kinds.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Options {
+    /// Pipeline to run; [`Mode::Auto`] decides per cloud.
+    pub mode: Mode,
+    /// Settings of the dense pipeline.
+    pub dense: dense::Params,
+    /// Settings of the shared radius stage.
+    pub radii: radii::Params,
+    /// Thresholds of the automatic mode choice.
+    pub auto: AutoThresholds,
+}
+
+/// Thresholds of [`Mode::Auto`]: a cloud is dense when both are met.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AutoThresholds {
+    /// Points per m² of crown projection; terrestrial scans have thousands,
+    /// airborne scans (AHN: 10–50) far fewer.
+    pub min_density_pts_per_m2: f32,
+    /// Share (0–1) of the angular sectors around the lowest metres of the
+    /// tree that hold points: a scanned trunk is seen from (nearly) all sides.
+    pub min_trunk_coverage: f32,
+}
+
+impl Default for AutoThresholds {
+    fn default() -> Self {
+        Self {
+            min_density_pts_per_m2: 100.0,
+            min_trunk_coverage: 0.5,
+        }
+    }
+}
+
+/// A reconstructed tree.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    /// The skeleton with final radii; its anchor is the absolute trunk base.
+    pub skeleton: Skeleton,
+    /// Per-tree metrics.
+    pub metrics: metrics::TreeMetrics,
+    /// The pipeline actually used (never [`Mode::Auto`]).
+    pub mode: Mode,
+    /// Why that pipeline was used, in words.
+    pub mode_reason: String,
+    /// Best efforts the caller should know about, e.g. an estimated DBH.
+    pub notes: Vec<String>,
+}
+
+/// Reconstructs the skeleton, radii and metrics of the one tree in `cloud`.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::reconstruct::{reconstruct, Mode, Options};
+///
+/// // A vertical stem of radius 10 cm, 3 m tall, sampled on its bark.
+/// let mut points = Vec::new();
+/// for i in 0..3000 {
+///     let a = i as f32 * 2.399_963; // golden angle: even cover
+///     points.push(Vec3::new(0.1 * a.cos(), 0.1 * a.sin(), 3.0 * i as f32 / 3000.0));
+/// }
+/// let cloud = PointCloud::from_points(DVec3::new(155_000.0, 463_000.0, 0.0), points);
+/// let options = Options { mode: Mode::Dense, ..Options::default() };
+/// let tree = reconstruct(&cloud, &options).unwrap();
+/// assert!((tree.metrics.dbh_m - 0.2).abs() < 0.02);
+/// assert!((tree.skeleton.anchor().origin.x - 155_000.0).abs() < 0.02);
+/// ```
+pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction, ReconstructError> {
+    validate(cloud)?;
+    let (mode, mode_reason) = match opts.mode {
+        Mode::Auto => survey(cloud).choose(&opts.auto),
+        Mode::Dense => (Mode::Dense, "requested on the command line".to_string()),
+        Mode::Airborne => (Mode::Airborne, "requested on the command line".to_string()),
+    };
+    let (mut skeleton, tree_cloud, mut notes) = match mode {
+        Mode::Dense | Mode::Auto => {
+            let out = dense::reconstruct(cloud, &opts.dense)?;
+            (out.skeleton, out.cloud, out.notes)
+        }
+        Mode::Airborne => return Err(ReconstructError::PipelineUnavailable("airborne")),
+    };
+    let crown = metrics::Crown::measure(&skeleton, &tree_cloud);
+    let trunk = radii::assign_radii(&mut skeleton, &tree_cloud, &crown, &opts.radii);
+    notes.extend(trunk.note());
+    let metrics = metrics::TreeMetrics::measure(&skeleton, &crown, &trunk);
+    Ok(Reconstruction {
+        skeleton,
+        metrics,
+        mode,
+        mode_reason,
+        notes,
+    })
+}
+
+/// Rejects clouds no pipeline can turn into a tree: too few or non-finite
+/// points, or points on one line or one plane.
+pub fn validate(cloud: &PointCloud) -> Result<(), ReconstructError> {
+    if cloud.len() < MIN_POINTS {
+        return Err(ReconstructError::TooFewPoints {
+            found: cloud.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    if !cloud.points.iter().all(|p| p.is_finite()) || !cloud.offset.is_finite() {
+        return Err(ReconstructError::Degenerate(
+            "the cloud has non-finite coordinates".into(),
+        ));
+    }
+    let spread = principal_spreads(&cloud.points);
+    // Spreads are standard deviations along the principal axes, largest
+    // first. A real tree is never thinner than a millimetre per 10 m.
+    if spread[0] < 1e-3 {
+        return Err(ReconstructError::Degenerate("all points coincide".into()));
+    }
+    if spread[1] < 1e-4 * spread[0] {
+        return Err(ReconstructError::Degenerate(
+            "all points lie on one line".into(),
+        ));
+    }
+    if spread[2] < 1e-4 * spread[0] {
+        return Err(ReconstructError::Degenerate(
+            "all points lie on one plane".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that the tree stands upright: the lowest part (the trunk) must be
+/// narrow and not lean over. Called by the pipelines after ground removal.
+pub(crate) fn check_upright(
+    points: &[Vec3],
+    base_z: f32,
+    top_z: f32,
+) -> Result<(), ReconstructError> {
+    let height = top_z - base_z;
+    let band = |lo: f32, hi: f32| {
+        let sel: Vec<Vec3> = points
+            .iter()
+            .copied()
+            .filter(|p| p.z >= base_z + lo * height && p.z <= base_z + hi * height)
+            .collect();
+        sel
+    };
+    let low = band(0.0, 0.1);
+    let high = band(0.9, 1.0);
+    let (low_c, low_r) = horizontal_spread(&low);
+    let (_, high_r) = horizontal_spread(&high);
+    // A lying tree fills its lowest tenth of "height" along its whole length.
+    if low_r > 0.5 * height {
+        return Err(ReconstructError::Degenerate(format!(
+            "the lowest tenth of the cloud spreads {low_r:.1} m sideways for a height of \
+             {height:.1} m: the tree looks tilted or lying"
+        )));
+    }
+    // Upside down: a narrow "trunk" on top of a wide "crown".
+    if low_r > 4.0 * high_r.max(0.02) && low_r > 0.15 * height {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud is wide at the bottom ({low_r:.1} m) and narrow at the top \
+             ({high_r:.2} m): the tree looks upside down"
+        )));
+    }
+    // A trunk leaning more than 60° from vertical: compare the centroid of the
+    // lowest tenth with the centroid of the second tenth.
+    let (mid_c, _) = horizontal_spread(&band(0.1, 0.2));
+    let rise = 0.1 * height;
+    let run = (mid_c - low_c).length();
+    if !low.is_empty() && run > rise * 60f32.to_radians().tan() {
+        return Err(ReconstructError::Degenerate(format!(
+            "the trunk leans {:.0}° from vertical: the cloud looks tilted",
+            run.atan2(rise).to_degrees()
+        )));
+    }
+    Ok(())
+}
+
+/// Horizontal centroid and RMS distance to it of a set of points.
+fn horizontal_spread(points: &[Vec3]) -> (glam::Vec2, f32) {
+    if points.is_empty() {
+        return (glam::Vec2::ZERO, 0.0);
+    }
+    let n = points.len() as f32;
+    let c = points.iter().map(|p| p.truncate()).sum::<glam::Vec2>() / n;
+    let ms = points
+        .iter()
+        .map(|p| p.truncate().distance_squared(c))
+        .sum::<f32>()
+        / n;
+    (c, ms.sqrt())
+}
+
+/// Standard deviations of the points along their principal axes, largest
+/// first (eigenvalues of the covariance matrix by Jacobi rotations).
+pub(crate) fn principal_spreads(points: &[Vec3]) -> [f64; 3] {
+    let n = points.len().max(1) as f64;
+    let mean = points.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / n;
+    let mut c = [[0.0f64; 3]; 3];
+    for p in points {
+        let d = p.as_dvec3() - mean;
+        let d = [d.x, d.y, d.z];
+        for i in 0..3 {
+            for j in 0..3 {
+                c[i][j] += d[i] * d[j] / n;
+            }
+        }
+    }
+    let mut ev = symmetric_eigenvalues(c);
+    ev.sort_by(|a, b| b.total_cmp(a));
+    ev.map(|v| v.max(0.0).sqrt())
+}
+
+/// Eigenvalues of a symmetric 3×3 matrix by cyclic Jacobi rotations.
+fn symmetric_eigenvalues(mut a: [[f64; 3]; 3]) -> [f64; 3] {
+    for _ in 0..50 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        if off < 1e-15 * (a[0][0].abs() + a[1][1].abs() + a[2][2].abs()) || off == 0.0 {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q] == 0.0 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            // Numerical Recipes' stable choice of the rotation angle.
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let cs = 1.0 / (t * t + 1.0).sqrt();
+            let sn = t * cs;
+            // Apply the rotation J^T A J on rows/columns p and q.
+            for row in a.iter_mut() {
+                let (akp, akq) = (row[p], row[q]);
+                row[p] = cs * akp - sn * akq;
+                row[q] = sn * akp + cs * akq;
+            }
+            let (row_p, row_q) = (a[p], a[q]);
+            for k in 0..3 {
+                a[p][k] = cs * row_p[k] - sn * row_q[k];
+                a[q][k] = sn * row_p[k] + cs * row_q[k];
+            }
+        }
+    }
+    [a[0][0], a[1][1], a[2][2]]
+}
+
+/// What [`Mode::Auto`] looks at: how densely the crown is sampled and how
+/// well the trunk is seen from all sides.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Survey {
+    /// Points per m² of the crown's projected footprint (0.5 m cells).
+    pub density_pts_per_m2: f32,
+    /// Share (0–1) of the 8 angular sectors around the stem that hold points,
+    /// averaged over the 0.25 m slices of the lowest 2 m.
+    pub trunk_coverage: f32,
+    /// Median distance between a point and its nearest neighbour, in metres,
+    /// over a sample of points (`NaN` when not measured).
+    pub spacing_m: f32,
+}
+
+/// Measures the cloud for the automatic mode choice. Ground points (LAS class
+/// 2) are ignored when the cloud is classified.
+pub fn survey(cloud: &PointCloud) -> Survey {
+    let pts: Vec<Vec3> = match &cloud.classification {
+        Some(class) => cloud
+            .points
+            .iter()
+            .zip(class)
+            .filter(|&(_, &c)| c != crate::cloud::CLASS_GROUND)
+            .map(|(p, _)| *p)
+            .collect(),
+        None => cloud.points.clone(),
+    };
+    Survey {
+        density_pts_per_m2: footprint_density(&pts),
+        trunk_coverage: trunk_coverage(&pts),
+        spacing_m: sampled_spacing(&pts),
+    }
+}
+
+impl Survey {
+    /// The pipeline these figures call for, and why.
+    pub fn choose(&self, t: &AutoThresholds) -> (Mode, String) {
+        let dense = self.density_pts_per_m2 >= t.min_density_pts_per_m2
+            && self.trunk_coverage >= t.min_trunk_coverage;
+        let (mode, verdict) = if dense {
+            (Mode::Dense, "dense scan")
+        } else {
+            (Mode::Airborne, "sparse scan or trunk not seen all around")
+        };
+        let reason = format!(
+            "{verdict}: {:.0} points/m² of crown projection (dense from {:.0}), trunk coverage \
+             {:.2} (dense from {:.2}), median point spacing {:.3} m",
+            self.density_pts_per_m2,
+            t.min_density_pts_per_m2,
+            self.trunk_coverage,
+            t.min_trunk_coverage,
+            self.spacing_m
+        );
+        (mode, reason)
+    }
+}
+
+/// Points per m² of occupied 0.5 m × 0.5 m ground cells.
+fn footprint_density(points: &[Vec3]) -> f32 {
+    const CELL_M: f32 = 0.5;
+    let mut cells: Vec<(i64, i64)> = points
+        .iter()
+        .map(|p| ((p.x / CELL_M).floor() as i64, (p.y / CELL_M).floor() as i64))
+        .collect();
+    cells.sort_unstable();
+    cells.dedup();
+    points.len() as f32 / (cells.len().max(1) as f32 * CELL_M * CELL_M)
+}
+
+/// Mean share of occupied angular sectors around the stem in the lowest 2 m.
+fn trunk_coverage(points: &[Vec3]) -> f32 {
+    const SLICE_M: f32 = 0.25;
+    const SLICES: usize = 8;
+    const SECTORS: usize = 8;
+    let Some(base_z) = points.iter().map(|p| p.z).min_by(f32::total_cmp) else {
+        return 0.0;
+    };
+    let mut slices: Vec<Vec<Vec3>> = vec![Vec::new(); SLICES];
+    for p in points {
+        let k = ((p.z - base_z) / SLICE_M) as usize;
+        if k < SLICES {
+            slices[k].push(*p);
+        }
+    }
+    let mut total = 0.0;
+    for slice in &slices {
+        if slice.len() < SECTORS {
+            continue;
+        }
+        let (c, _) = horizontal_spread(slice);
+        let mut seen = [false; SECTORS];
+        for p in slice {
+            let d = p.truncate() - c;
+            let a = d.y.atan2(d.x) + std::f32::consts::PI;
+            let s = ((a / std::f32::consts::TAU) * SECTORS as f32) as usize;
+            seen[s.min(SECTORS - 1)] = true;
+        }
+        total += seen.iter().filter(|&&s| s).count() as f32 / SECTORS as f32;
+    }
+    total / SLICES as f32
+}
+
+/// Median nearest-neighbour distance over up to 2,000 evenly picked points.
+fn sampled_spacing(points: &[Vec3]) -> f32 {
+    if points.len() < 2 || points.len() > 2_000_000 {
+        return f32::NAN;
+    }
+    let index = crate::spatial::PointIndex::new(points);
+    let step = (points.len() / 2000).max(1);
+    let mut d: Vec<f32> = points
+        .iter()
+        .step_by(step)
+        .filter_map(|&p| index.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
+        .collect();
+    if d.is_empty() {
+        return f32::NAN;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigenvalues_of_a_diagonal_and_a_rotated_matrix() {
+        let ev = symmetric_eigenvalues([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]);
+        let mut ev = ev.to_vec();
+        ev.sort_by(f64::total_cmp);
+        assert_eq!(ev, vec![1.0, 2.0, 3.0]);
+        // [[2,1,0],[1,2,0],[0,0,5]] has eigenvalues 1, 3, 5.
+        let mut ev =
+            symmetric_eigenvalues([[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 5.0]]).to_vec();
+        ev.sort_by(f64::total_cmp);
+        for (a, b) in ev.iter().zip([1.0, 3.0, 5.0]) {
+            assert!((a - b).abs() < 1e-9, "{ev:?}");
+        }
+    }
+}

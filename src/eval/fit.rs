@@ -1,0 +1,257 @@
+//! How well a skeleton's cylinders fit a real cloud that has no ground truth
+//! (issue 3, "Dense, fit"): the share of points within 2 cm and 5 cm of the
+//! reconstructed branch surfaces, the mean point-to-surface distance, and
+//! the share of the surface area with a point within 5 cm, i.e. the surface
+//! the data supports.
+//!
+//! Each internode is a truncated cone from the parent's radius to the
+//! child's (the same surface as [`crate::reconstruct::metrics::wood_volume_m3`]).
+//! A point's distance to the model is its distance to the nearest cone's
+//! lateral surface (or to its end disc beyond the ends). Candidate cones are
+//! found through [`PointIndex`] over samples along the axes.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::cloud::PointCloud;
+use crate::skeleton::Skeleton;
+use crate::spatial::PointIndex;
+
+/// Spacing of the axis samples used to find candidate cones, in metres.
+const AXIS_STEP_M: f32 = 0.05;
+/// Spacing of the surface samples for the supported share, in metres.
+const SURFACE_STEP_M: f32 = 0.02;
+/// At most this many surface samples; coarser spacing for huge models.
+const MAX_SURFACE_SAMPLES: f32 = 2.0e6;
+
+/// Point-to-surface fit of a skeleton to a cloud.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceFit {
+    /// Points compared.
+    pub points: usize,
+    /// Share (0–1) of the points within 2 cm of the surface.
+    pub within_2cm: f32,
+    /// Share (0–1) of the points within 5 cm of the surface.
+    pub within_5cm: f32,
+    /// Mean point-to-surface distance, in metres.
+    pub mean_distance_m: f32,
+    /// Share (0–1) of the surface area with a point within 5 cm.
+    pub supported_share: f32,
+    /// Lateral surface area of all cones, in m².
+    pub surface_area_m2: f32,
+}
+
+/// One internode as a truncated cone.
+#[derive(Debug, Clone, Copy)]
+struct Cone {
+    a: Vec3,
+    b: Vec3,
+    ra: f32,
+    rb: f32,
+}
+
+impl Cone {
+    /// Distance from `p` to the cone's surface (lateral surface, or the end
+    /// discs for points beyond the ends).
+    fn distance(&self, p: Vec3) -> f32 {
+        let axis = self.b - self.a;
+        let len = axis.length();
+        if len <= f32::EPSILON {
+            return (p.distance(self.a) - self.ra).abs();
+        }
+        let u = axis / len;
+        let s = (p - self.a).dot(u);
+        let radial = ((p - self.a) - u * s).length();
+        if s < 0.0 || s > len {
+            let (over, r) = if s < 0.0 {
+                (-s, self.ra)
+            } else {
+                (s - len, self.rb)
+            };
+            return if radial <= r {
+                over
+            } else {
+                (over * over + (radial - r) * (radial - r)).sqrt()
+            };
+        }
+        let r = self.ra + (self.rb - self.ra) * s / len;
+        (radial - r).abs()
+    }
+
+    fn lateral_area(&self) -> f32 {
+        let slant = ((self.ra - self.rb).powi(2) + self.a.distance_squared(self.b)).sqrt();
+        std::f32::consts::PI * (self.ra + self.rb) * slant
+    }
+}
+
+/// Compares `skeleton`'s cylinders with `cloud` (both georeferenced; the
+/// cloud is rebased to the skeleton's anchor when they differ).
+pub fn surface_fit(skeleton: &Skeleton, cloud: &PointCloud) -> SurfaceFit {
+    let rebased;
+    let cloud = if cloud.offset == skeleton.anchor().origin {
+        cloud
+    } else {
+        rebased = cloud.rebased(skeleton.anchor().origin);
+        &rebased
+    };
+    let cones: Vec<Cone> = skeleton
+        .internodes()
+        .map(|(p, c)| Cone {
+            a: skeleton.position(p),
+            b: skeleton.position(c),
+            ra: skeleton.radius(p),
+            rb: skeleton.radius(c),
+        })
+        .collect();
+    let surface_area_m2: f32 = cones.iter().map(Cone::lateral_area).sum();
+    if cones.is_empty() || cloud.is_empty() {
+        return SurfaceFit {
+            points: cloud.len(),
+            within_2cm: 0.0,
+            within_5cm: 0.0,
+            mean_distance_m: f32::NAN,
+            supported_share: 0.0,
+            surface_area_m2,
+        };
+    }
+    let (d2, d5, mean) = point_distances(&cones, &cloud.points);
+    SurfaceFit {
+        points: cloud.len(),
+        within_2cm: d2,
+        within_5cm: d5,
+        mean_distance_m: mean,
+        supported_share: supported_share(&cones, &cloud.points, surface_area_m2),
+        surface_area_m2,
+    }
+}
+
+/// Shares within 2 cm and 5 cm and the mean distance of the points.
+fn point_distances(cones: &[Cone], points: &[Vec3]) -> (f32, f32, f32) {
+    let mut samples = Vec::new();
+    let mut owner = Vec::new();
+    for (k, c) in cones.iter().enumerate() {
+        let steps = (c.a.distance(c.b) / AXIS_STEP_M).ceil().max(1.0) as usize;
+        for i in 0..=steps {
+            samples.push(c.a.lerp(c.b, i as f32 / steps as f32));
+            owner.push(k as u32);
+        }
+    }
+    let index = PointIndex::new(&samples);
+    let max_r = cones.iter().map(|c| c.ra.max(c.rb)).fold(0.0, f32::max);
+    // Any cone whose surface is within 5 cm of a point has an axis sample
+    // within max radius + half a step + 5 cm of it.
+    let reach = max_r + 0.5 * AXIS_STEP_M + 0.05;
+    let (mut n2, mut n5, mut sum) = (0usize, 0usize, 0.0f64);
+    let mut seen: Vec<u32> = Vec::new();
+    for &p in points {
+        seen.clear();
+        let mut best = f32::INFINITY;
+        for n in index.within(p, reach) {
+            let k = owner[n.index];
+            if !seen.contains(&k) {
+                seen.push(k);
+                best = best.min(cones[k as usize].distance(p));
+            }
+        }
+        if best > 0.05 {
+            // Far from every surface: the nearest axis sample's cone gives
+            // the distance (an upper bound off by at most a few cm).
+            if let Some(n) = index.nearest(p) {
+                best = best.min(cones[owner[n.index] as usize].distance(p));
+            }
+        }
+        n2 += usize::from(best <= 0.02);
+        n5 += usize::from(best <= 0.05);
+        sum += f64::from(best);
+    }
+    let n = points.len() as f32;
+    (
+        n2 as f32 / n,
+        n5 as f32 / n,
+        (sum / points.len() as f64) as f32,
+    )
+}
+
+/// Area-weighted share of surface samples with a cloud point within 5 cm.
+fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
+    if area_m2 <= 0.0 {
+        return 0.0;
+    }
+    let step = SURFACE_STEP_M.max((area_m2 / MAX_SURFACE_SAMPLES).sqrt());
+    let index = PointIndex::new(points);
+    let (mut supported, mut total) = (0.0f64, 0.0f64);
+    for c in cones {
+        let axis = c.b - c.a;
+        let len = axis.length();
+        if len <= f32::EPSILON {
+            continue;
+        }
+        let u = axis / len;
+        let e1 = u.any_orthonormal_vector();
+        let e2 = u.cross(e1);
+        let along = (len / step).ceil().max(1.0) as usize;
+        let around = ((std::f32::consts::TAU * c.ra.max(c.rb) / step).ceil() as usize).max(6);
+        for i in 0..along {
+            let t = (i as f32 + 0.5) / along as f32;
+            let r = c.ra + (c.rb - c.ra) * t;
+            let centre = c.a + axis * t;
+            // Each sample stands for an equal share of this ring's area.
+            let weight = f64::from(c.lateral_area()) / (along * around) as f64;
+            for j in 0..around {
+                let phi = j as f32 / around as f32 * std::f32::consts::TAU;
+                let q = centre + (e1 * phi.cos() + e2 * phi.sin()) * r;
+                total += weight;
+                if index
+                    .nearest(q)
+                    .is_some_and(|n| n.distance_sq <= 0.05 * 0.05)
+                {
+                    supported += weight;
+                }
+            }
+        }
+    }
+    if total > 0.0 {
+        (supported / total) as f32
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::{Anchor, NodeId};
+    use glam::DVec3;
+
+    #[test]
+    fn points_on_a_cylinder_fit_it_and_support_it() {
+        let mut s = Skeleton::new(Anchor::at(DVec3::new(10.0, 20.0, 0.0)), 0.2);
+        s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.2);
+        let mut pts = Vec::new();
+        for i in 0..200 {
+            for j in 0..64 {
+                let a = j as f32 / 64.0 * std::f32::consts::TAU;
+                pts.push(Vec3::new(0.2 * a.cos(), 0.2 * a.sin(), i as f32 * 0.01));
+            }
+        }
+        pts.push(Vec3::new(1.0, 0.0, 1.0)); // 0.8 m off the surface
+        let cloud = PointCloud::from_points(DVec3::new(10.0, 20.0, 0.0), pts);
+        let fit = surface_fit(&s, &cloud);
+        assert!(fit.within_2cm > 0.999 && fit.within_2cm < 1.0);
+        assert!((fit.mean_distance_m - 0.8 / fit.points as f32).abs() < 1e-4);
+        assert!(fit.supported_share > 0.99);
+        assert!((fit.surface_area_m2 - std::f32::consts::TAU * 0.2 * 2.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_too_fat_cylinder_is_not_supported() {
+        let mut s = Skeleton::new(Anchor::at(DVec3::ZERO), 0.5);
+        s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.5);
+        let pts = (0..100)
+            .map(|i| Vec3::new(0.1, 0.0, i as f32 * 0.01))
+            .collect();
+        let fit = surface_fit(&s, &PointCloud::from_points(DVec3::ZERO, pts));
+        assert_eq!(fit.within_5cm, 0.0);
+        assert!(fit.supported_share < 0.05);
+    }
+}

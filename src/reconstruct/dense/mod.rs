@@ -1,0 +1,320 @@
+//! The dense pipeline for terrestrial and mobile scans, after AdTree
+//! (Du et al. 2019, as summarised in lsystem-from-adtree-skeletons §2.1.1 and
+//! multi-temporal-tree-growth §3.2.1).
+//!
+//! Steps, each in its own file:
+//! 1. clean-up with [`crate::cloud::clean::voxel_downsample`]: near-duplicate
+//!    removal (more than `k` copies of a point would form an isolated clique
+//!    in the graph) and, for huge clouds, voxel thinning to at most
+//!    [`Params::max_points`], which bounds the graph's memory (about `2·k`
+//!    edges per point);
+//! 2. [`graph`]: a k-nearest-neighbour graph (in place of AdTree's 3D
+//!    Delaunay graph), made connected by bridging components at their
+//!    closest pairs, and Dijkstra's shortest-path tree from the trunk base
+//!    (every point of the lowest slice is a source, so the distance fronts
+//!    start level instead of spreading from one bark point);
+//! 3. [`skeletonize`]: cross-sections of equal geodesic distance collapse to
+//!    their centroids, i.e. skeleton nodes at branch centres;
+//! 4. [`simplify`]: near-duplicate children merged, short noisy branches
+//!    dropped by subtree length, Douglas–Peucker along chains, main
+//!    extension first.
+//!
+//! Radii are not set here: the shared stage in [`super::radii`] does that
+//! for both pipelines.
+
+use glam::Vec3;
+
+use super::ReconstructError;
+use crate::cloud::clean::voxel_downsample;
+use crate::cloud::{CLASS_GROUND, PointCloud};
+use crate::skeleton::{Anchor, Skeleton};
+use crate::spatial::PointIndex;
+
+mod graph;
+mod simplify;
+mod skeletonize;
+
+pub(crate) use simplify::point_segment_distance;
+
+/// Settings of the dense pipeline. Lengths left `None` scale with the
+/// cloud's median point spacing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Neighbours per point in the graph.
+    pub neighbours: usize,
+    /// Clouds with more points (after de-duplication) are thinned on a voxel
+    /// grid to at most this many; it bounds the graph's memory.
+    pub max_points: usize,
+    /// Points closer than this are duplicates, in metres.
+    pub duplicate_m: f32,
+    /// Width of the geodesic-distance bins that become cross-sections;
+    /// `None`: [`Params::bin_spacings`] × the median point spacing.
+    pub bin_width_m: Option<f32>,
+    /// Automatic bin width in multiples of the median point spacing.
+    pub bin_spacings: f32,
+    /// Range the automatic bin width is clamped to, in metres.
+    pub bin_range_m: (f32, f32),
+    /// Graph links longer than this many median point spacings are cut, so
+    /// that isolated outliers fall away as specks.
+    pub max_edge_spacings: f32,
+    /// Lateral branches shorter than this many bin widths are noise.
+    pub min_branch_bins: f32,
+    /// Douglas–Peucker tolerance, in bin widths.
+    pub simplify_bins: f32,
+    /// Components with fewer points are dropped as isolated noise.
+    pub min_component_points: usize,
+    /// Components farther than this from the tree are not bridged, in metres.
+    pub max_gap_m: f32,
+    /// A far component with at least this share of the points is a second
+    /// tree or object: an error rather than a silent drop.
+    pub detached_share: f32,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            neighbours: 10,
+            max_points: 250_000,
+            duplicate_m: 0.002,
+            bin_width_m: None,
+            bin_spacings: 0.6,
+            bin_range_m: (0.03, 0.5),
+            max_edge_spacings: 20.0,
+            min_branch_bins: 3.0,
+            simplify_bins: 0.3,
+            min_component_points: 5,
+            max_gap_m: 1.0,
+            detached_share: 0.1,
+        }
+    }
+}
+
+/// The dense pipeline's result, before radii.
+#[derive(Debug, Clone)]
+pub struct DenseOutput {
+    /// The skeleton (radii 0); its anchor is the absolute trunk base.
+    pub skeleton: Skeleton,
+    /// The points the skeleton was built from (cleaned, without ground),
+    /// relative to the skeleton's anchor: `cloud.offset == anchor.origin`.
+    pub cloud: PointCloud,
+    /// Best efforts worth reporting (thinning, dropped or bridged parts).
+    pub notes: Vec<String>,
+    /// The bin width used, in metres.
+    pub bin_width_m: f32,
+}
+
+/// Builds the skeleton of the one tree in `cloud` (radii left at 0).
+pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, ReconstructError> {
+    let mut notes = Vec::new();
+    let points = without_ground(cloud, &mut notes);
+    let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
+    if let Some(voxel) = thinned {
+        notes.push(format!(
+            "thinned {} points to {} on a {:.1} cm voxel grid",
+            cloud.len(),
+            points.len(),
+            voxel * 100.0
+        ));
+    }
+    require_points(points.len())?;
+    let index = PointIndex::new(&points);
+    let spacing = sampled_spacing(&points, &index);
+    let knn = graph::knn_edges(
+        &points,
+        &index,
+        params.neighbours,
+        params.max_edge_spacings * spacing.max(params.duplicate_m),
+    );
+    drop(index);
+    let bin_m = params.bin_width_m.unwrap_or_else(|| {
+        (params.bin_spacings * spacing).clamp(params.bin_range_m.0, params.bin_range_m.1)
+    });
+    let (points, edges) = connect(points, knn, bin_m, params, &mut notes)?;
+    require_points(points.len())?;
+    let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
+    let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
+    super::check_upright(&points, base_z, top_z)?;
+
+    // The trunk base: every point of the lowest slice is a source; the root
+    // sits at their horizontal centroid, at the lowest point's height.
+    let sources: Vec<u32> = (0..points.len() as u32)
+        .filter(|&i| points[i as usize].z < base_z + bin_m)
+        .collect();
+    let base_xy = sources
+        .iter()
+        .map(|&i| points[i as usize].truncate())
+        .sum::<glam::Vec2>()
+        / sources.len() as f32;
+    let root = base_xy.extend(base_z);
+    let g = graph::Graph::from_edges(points.len(), &edges);
+    drop(edges);
+    let (dist, pred) = graph::shortest_path_tree(&g, &sources);
+    let sections = skeletonize::cross_sections(&points, &g, &dist, &pred, bin_m, root);
+    drop(g);
+
+    // Express everything relative to the trunk base: the anchor carries the
+    // absolute position in f64, so the georeference stays exact.
+    let origin = cloud.offset + root.as_dvec3();
+    let mut nodes = sections.nodes;
+    for node in &mut nodes {
+        node.position -= root;
+    }
+    let nodes = simplify::merge_close_siblings(nodes, sections.counts, &sections.spread_m, bin_m);
+    let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
+        .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
+    let skeleton = simplify::prune_short_branches(&skeleton, params.min_branch_bins * bin_m);
+    let mut skeleton = simplify::douglas_peucker(&skeleton, params.simplify_bins * bin_m);
+    skeleton.order_main_extension_first();
+    let mut skeleton = skeleton.canonical();
+    skeleton.set_anchor(Anchor { origin, crs: None });
+    let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
+    Ok(DenseOutput {
+        skeleton,
+        cloud: PointCloud::from_points(origin, tree_points),
+        notes,
+        bin_width_m: bin_m,
+    })
+}
+
+/// Removes near-duplicates (points within one `duplicate_m` voxel), then
+/// thins on coarser voxels until at most `max_points` remain. Returns the
+/// points and, when thinning beyond de-duplication was needed, the voxel.
+fn thin(points: Vec<Vec3>, duplicate_m: f32, max_points: usize) -> (Vec<Vec3>, Option<f32>) {
+    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+    let mut out = voxel_downsample(&cloud, duplicate_m);
+    let mut voxel = duplicate_m;
+    let mut thinned = None;
+    while out.len() > max_points.max(1) {
+        // Tree surfaces are two-dimensional: the count falls with voxel².
+        voxel *= ((out.len() as f32 / max_points.max(1) as f32).sqrt() * 1.05).max(1.1);
+        out = voxel_downsample(&cloud, voxel);
+        thinned = Some(voxel);
+    }
+    (out.points, thinned)
+}
+
+fn require_points(found: usize) -> Result<(), ReconstructError> {
+    if found < super::MIN_POINTS {
+        return Err(ReconstructError::TooFewPoints {
+            found,
+            needed: super::MIN_POINTS,
+        });
+    }
+    Ok(())
+}
+
+/// The points that are not classified as ground (all when unclassified).
+fn without_ground(cloud: &PointCloud, notes: &mut Vec<String>) -> Vec<Vec3> {
+    let Some(class) = &cloud.classification else {
+        return cloud.points.clone();
+    };
+    let kept: Vec<Vec3> = cloud
+        .points
+        .iter()
+        .zip(class)
+        .filter(|&(_, &c)| c != CLASS_GROUND)
+        .map(|(p, _)| *p)
+        .collect();
+    if kept.len() < cloud.len() {
+        notes.push(format!(
+            "left out {} ground points (LAS class 2)",
+            cloud.len() - kept.len()
+        ));
+    }
+    kept
+}
+
+/// Median distance from a point to its nearest neighbour, over up to 2,000
+/// evenly picked points.
+fn sampled_spacing(points: &[Vec3], index: &PointIndex) -> f32 {
+    let step = (points.len() / 2000).max(1);
+    let mut nearest: Vec<f32> = points
+        .iter()
+        .step_by(step)
+        .filter_map(|&p| index.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
+        .collect();
+    if nearest.is_empty() {
+        return 0.0;
+    }
+    let mid = nearest.len() / 2;
+    *nearest.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
+/// An undirected graph edge: two point indices and the length in metres.
+type Edge = (u32, u32, f32);
+
+/// Makes the graph connected: drops isolated specks, bridges the remaining
+/// components to the largest one at their closest pairs, and rejects or
+/// drops parts that lie too far away. Returns the kept points and edges.
+fn connect(
+    points: Vec<Vec3>,
+    knn: Vec<(u32, u32, f32)>,
+    bin_m: f32,
+    params: &Params,
+    notes: &mut Vec<String>,
+) -> Result<(Vec<Vec3>, Vec<Edge>), ReconstructError> {
+    let (labels, sizes) = graph::components(points.len(), &knn);
+    let specks = sizes.iter().position(|&s| s < params.min_component_points);
+    let kept_components = specks.unwrap_or(sizes.len()).max(1);
+    let speck_points: usize = sizes[kept_components..].iter().sum();
+    if speck_points > 0 {
+        notes.push(format!(
+            "dropped {speck_points} isolated points in {} specks of fewer than {} points",
+            sizes.len() - kept_components,
+            params.min_component_points
+        ));
+    }
+    let bridges =
+        graph::bridge_components(&points, &labels, &sizes[..kept_components], 2.0 * bin_m);
+    let total = points.len() as f32;
+    let mut dropped = vec![false; kept_components];
+    let mut used = Vec::new();
+    let mut widest = 0.0f32;
+    for b in &bridges {
+        let (a, c, gap) = b.edge;
+        let joined_label = labels[c as usize] as usize;
+        let far = gap > params.max_gap_m || dropped[labels[a as usize] as usize];
+        if !far {
+            used.push(b.edge);
+            widest = widest.max(gap);
+            continue;
+        }
+        let share = b.points as f32 / total;
+        if share >= params.detached_share && gap.is_finite() {
+            return Err(ReconstructError::Disconnected {
+                share_pct: 100.0 * share,
+                gap_m: gap,
+            });
+        }
+        dropped[joined_label] = true;
+        notes.push(format!(
+            "dropped a detached part of {} points {gap:.2} m away from the tree",
+            b.points
+        ));
+    }
+    if !used.is_empty() {
+        notes.push(format!(
+            "bridged {} gaps in the scan (widest {widest:.2} m)",
+            used.len()
+        ));
+    }
+    let keep: Vec<bool> = labels
+        .iter()
+        .map(|&l| (l as usize) < kept_components && !dropped[l as usize])
+        .collect();
+    let mut new_id = vec![u32::MAX; points.len()];
+    let mut kept = Vec::with_capacity(points.len());
+    for (i, &p) in points.iter().enumerate() {
+        if keep[i] {
+            new_id[i] = kept.len() as u32;
+            kept.push(p);
+        }
+    }
+    let edges = knn
+        .into_iter()
+        .chain(used)
+        .filter(|&(a, b, _)| keep[a as usize] && keep[b as usize])
+        .map(|(a, b, w)| (new_id[a as usize], new_id[b as usize], w))
+        .collect();
+    Ok((kept, edges))
+}

@@ -1,0 +1,315 @@
+//! Per-tree metrics in the spirit of TreeQSM's tree data: height, DBH (with
+//! how it was obtained), crown base height, crown diameter and projected
+//! crown area, total branch length, wood volume, and branches per order.
+//!
+//! Height and crown come from the points (the skeleton ends at branch
+//! centres, short of the outermost twigs); lengths and volume from the
+//! skeleton with its radii. The crown hull is spade's Delaunay convex hull.
+
+use glam::{DVec2, Vec3};
+use serde::{Deserialize, Serialize};
+use spade::{DelaunayTriangulation, Point2, Triangulation};
+
+use super::radii::{DbhMethod, TrunkFit};
+use crate::cloud::PointCloud;
+use crate::skeleton::{NodeId, Skeleton};
+
+/// A lateral branch counts towards the crown base only if its subtree is at
+/// least this share of the skeleton's total length.
+const CROWN_BRANCH_SHARE: f32 = 0.05;
+
+/// Crown figures measured from the points, needed before the radius stage
+/// (the allometric DBH uses height and crown diameter).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Crown {
+    /// Highest point above the trunk base, in metres.
+    pub height_m: f32,
+    /// Height of the first substantial fork on the trunk, in metres.
+    pub base_height_m: f32,
+    /// Mean of the crown hull's largest chord and its width across it, m.
+    pub diameter_m: f32,
+    /// Area of the convex hull of the crown points projected on the ground.
+    pub area_m2: f32,
+}
+
+impl Crown {
+    /// Measures the crown of `tree` (points without ground, relative to the
+    /// skeleton's anchor) above the skeleton's crown base.
+    pub fn measure(skeleton: &Skeleton, tree: &PointCloud) -> Crown {
+        let base_z = skeleton.position(NodeId::ROOT).z;
+        let top = tree.points.iter().map(|p| p.z).fold(base_z, f32::max);
+        let base_height_m = crown_base_height(skeleton);
+        let crown: Vec<Vec3> = tree
+            .points
+            .iter()
+            .copied()
+            .filter(|p| p.z - base_z >= base_height_m)
+            .collect();
+        let pts = if crown.len() >= 3 {
+            &crown
+        } else {
+            &tree.points
+        };
+        let hull = convex_hull_xy(pts);
+        Crown {
+            height_m: top - base_z,
+            base_height_m,
+            diameter_m: hull_diameter(&hull),
+            area_m2: polygon_area(&hull),
+        }
+    }
+}
+
+/// Branch count and length for one branch order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct OrderStats {
+    /// Branch order: 0 is the trunk, 1 its laterals, and so on.
+    pub order: u32,
+    /// Number of branches of this order.
+    pub count: u32,
+    /// Their summed length, in metres.
+    pub length_m: f32,
+}
+
+/// Metrics of one reconstructed tree.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct TreeMetrics {
+    /// Tree height (highest point above the trunk base), metres.
+    pub height_m: f32,
+    /// Diameter at breast height (1.3 m), metres.
+    pub dbh_m: f32,
+    /// Whether the DBH was fitted to trunk points or estimated.
+    pub dbh_method: DbhMethod,
+    /// Height of the first substantial branch on the trunk, metres.
+    pub crown_base_height_m: f32,
+    /// Crown diameter (mean of the hull's largest chord and the width
+    /// across it), metres.
+    pub crown_diameter_m: f32,
+    /// Projected crown area (convex hull), m².
+    pub crown_area_m2: f32,
+    /// Summed length of all internodes, metres.
+    pub total_branch_length_m: f32,
+    /// Wood volume as the sum of truncated cones, m³.
+    pub wood_volume_m3: f32,
+    /// Skeleton nodes.
+    pub nodes: u32,
+    /// Branch count and length per order, order 0 first.
+    pub branch_orders: Vec<OrderStats>,
+}
+
+impl TreeMetrics {
+    /// Gathers the metrics of a skeleton whose radii are set.
+    pub fn measure(skeleton: &Skeleton, crown: &Crown, trunk: &TrunkFit) -> TreeMetrics {
+        TreeMetrics {
+            height_m: crown.height_m,
+            dbh_m: trunk.dbh_m(),
+            dbh_method: trunk.method,
+            crown_base_height_m: crown.base_height_m,
+            crown_diameter_m: crown.diameter_m,
+            crown_area_m2: crown.area_m2,
+            total_branch_length_m: skeleton.total_length(),
+            wood_volume_m3: wood_volume_m3(skeleton),
+            nodes: skeleton.len() as u32,
+            branch_orders: order_stats(skeleton),
+        }
+    }
+}
+
+/// Sum of the truncated cones of all internodes, m³.
+pub fn wood_volume_m3(skeleton: &Skeleton) -> f32 {
+    skeleton
+        .internodes()
+        .map(|(p, c)| {
+            let (r1, r2) = (skeleton.radius(p), skeleton.radius(c));
+            let h = skeleton.internode_length(c);
+            std::f32::consts::PI * h / 3.0 * (r1 * r1 + r1 * r2 + r2 * r2)
+        })
+        .sum()
+}
+
+/// Branches per order: a branch starts at the root or at a lateral child and
+/// follows main extensions ([`Skeleton::branch_orders`]).
+fn order_stats(skeleton: &Skeleton) -> Vec<OrderStats> {
+    let orders = skeleton.branch_orders();
+    let top = orders.iter().copied().max().unwrap_or(0) as usize;
+    let mut stats: Vec<OrderStats> = (0..=top as u32)
+        .map(|order| OrderStats {
+            order,
+            count: 0,
+            length_m: 0.0,
+        })
+        .collect();
+    stats[0].count = 1;
+    for id in skeleton.ids().skip(1) {
+        let o = orders[id.index()] as usize;
+        stats[o].length_m += skeleton.internode_length(id);
+        if skeleton
+            .parent(id)
+            .is_some_and(|p| orders[p.index()] as usize != o)
+        {
+            stats[o].count += 1;
+        }
+    }
+    stats
+}
+
+/// Height above the base of the first fork on the trunk whose lateral
+/// subtree holds at least [`CROWN_BRANCH_SHARE`] of the total length; the
+/// first fork when none does; 0 for a skeleton without forks.
+fn crown_base_height(skeleton: &Skeleton) -> f32 {
+    let base_z = skeleton.position(NodeId::ROOT).z;
+    let sub = skeleton.subtree_lengths();
+    let total = sub[0].max(f32::EPSILON);
+    let mut first_fork = None;
+    let mut node = NodeId::ROOT;
+    loop {
+        let kids = skeleton.children(node);
+        if kids.len() > 1 {
+            let h = skeleton.position(node).z - base_z;
+            first_fork.get_or_insert(h);
+            let big = kids[1..].iter().any(|&c| {
+                sub[c.index()] + skeleton.internode_length(c) >= CROWN_BRANCH_SHARE * total
+            });
+            if big {
+                return h.max(0.0);
+            }
+        }
+        match kids.first() {
+            Some(&next) => node = next,
+            None => return first_fork.unwrap_or(0.0).max(0.0),
+        }
+    }
+}
+
+/// Convex hull of the points' ground projection, counter-clockwise, from
+/// spade's Delaunay triangulation. Empty or degenerate input gives fewer
+/// than three vertices.
+pub fn convex_hull_xy(points: &[Vec3]) -> Vec<DVec2> {
+    let vertices: Vec<Point2<f64>> = hull_candidates(points)
+        .into_iter()
+        .map(|p| Point2::new(f64::from(p.x), f64::from(p.y)))
+        .collect();
+    let Ok(dt) = DelaunayTriangulation::<Point2<f64>>::bulk_load(vertices) else {
+        return Vec::new();
+    };
+    if dt.num_inner_faces() == 0 {
+        return Vec::new();
+    }
+    dt.convex_hull()
+        .map(|edge| {
+            let p = edge.from().position();
+            DVec2::new(p.x, p.y)
+        })
+        .collect()
+}
+
+/// The points that can be hull vertices, up to a sliver: in each of 256
+/// columns the lowest and highest point, in each of 256 rows the leftmost
+/// and rightmost. Large crowns then triangulate in microseconds; the hull
+/// loses at most a sliver one column wide.
+fn hull_candidates(points: &[Vec3]) -> Vec<Vec3> {
+    const BINS: usize = 256;
+    if points.len() <= 4 * BINS {
+        return points.to_vec();
+    }
+    let lo = points
+        .iter()
+        .copied()
+        .reduce(Vec3::min)
+        .unwrap_or(Vec3::ZERO);
+    let hi = points.iter().copied().fold(lo, Vec3::max);
+    let size = ((hi - lo) / BINS as f32).max(Vec3::splat(1e-6));
+    let mut cols: Vec<Option<(Vec3, Vec3)>> = vec![None; BINS];
+    let mut rows: Vec<Option<(Vec3, Vec3)>> = vec![None; BINS];
+    let bin = |v: f32, lo: f32, size: f32| (((v - lo) / size) as usize).min(BINS - 1);
+    for &p in points {
+        let c = &mut cols[bin(p.x, lo.x, size.x)];
+        *c = Some(c.map_or((p, p), |(a, b)| {
+            (if p.y < a.y { p } else { a }, if p.y > b.y { p } else { b })
+        }));
+        let r = &mut rows[bin(p.y, lo.y, size.y)];
+        *r = Some(r.map_or((p, p), |(a, b)| {
+            (if p.x < a.x { p } else { a }, if p.x > b.x { p } else { b })
+        }));
+    }
+    cols.into_iter()
+        .chain(rows)
+        .flatten()
+        .flat_map(|(a, b)| [a, b])
+        .collect()
+}
+
+/// Area of a simple polygon (shoelace), m².
+fn polygon_area(ring: &[DVec2]) -> f32 {
+    if ring.len() < 3 {
+        return 0.0;
+    }
+    let twice: f64 = ring
+        .iter()
+        .zip(ring.iter().cycle().skip(1))
+        .map(|(a, b)| a.perp_dot(*b))
+        .sum();
+    (0.5 * twice.abs()) as f32
+}
+
+/// Mean of the hull's largest chord and its width perpendicular to it.
+fn hull_diameter(hull: &[DVec2]) -> f32 {
+    let mut best = (0.0, DVec2::X);
+    for (i, a) in hull.iter().enumerate() {
+        for b in &hull[i + 1..] {
+            let d = a.distance(*b);
+            if d > best.0 {
+                best = (d, (*b - *a) / d);
+            }
+        }
+    }
+    let (chord, dir) = best;
+    let across = dir.perp();
+    let (lo, hi) = hull
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let s = p.dot(across);
+            (lo.min(s), hi.max(s))
+        });
+    let width = if hull.is_empty() { 0.0 } else { hi - lo };
+    (0.5 * (chord + width)) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::Anchor;
+    use glam::DVec3;
+
+    #[test]
+    fn hull_of_a_square_with_inner_points() {
+        let mut pts = vec![
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(2.0, 0.0, 1.0),
+            Vec3::new(2.0, 2.0, 1.0),
+            Vec3::new(0.0, 2.0, 1.0),
+        ];
+        pts.extend((0..20).map(|i| Vec3::new(0.1 * i as f32 % 1.9 + 0.05, 1.0, 2.0)));
+        let hull = convex_hull_xy(&pts);
+        assert_eq!(hull.len(), 4);
+        assert!((polygon_area(&hull) - 4.0).abs() < 1e-6);
+        // Chord = diagonal 2√2, width across it = 2√2.
+        assert!((hull_diameter(&hull) - 2.0 * 2f32.sqrt()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_cylinder_has_the_cone_volume_and_one_trunk() {
+        let mut s = Skeleton::new(Anchor::at(DVec3::ZERO), 0.1);
+        let a = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.1);
+        s.add_child(a, Vec3::new(0.0, 0.0, 4.0), 0.1);
+        s.add_child(a, Vec3::new(1.0, 0.0, 2.0), 0.0);
+        let v = wood_volume_m3(&s);
+        let cone = std::f32::consts::PI * 1.0 / 3.0 * 0.01;
+        assert!((v - (std::f32::consts::PI * 0.01 * 4.0 + cone)).abs() < 1e-5);
+        let stats = order_stats(&s);
+        assert_eq!(stats.len(), 2);
+        assert_eq!((stats[0].count, stats[1].count), (1, 1));
+        assert!((stats[0].length_m - 4.0).abs() < 1e-6 && (stats[1].length_m - 1.0).abs() < 1e-6);
+        assert_eq!(crown_base_height(&s), 2.0);
+    }
+}

@@ -1,0 +1,586 @@
+//! Radii for both pipelines: a robust trunk fit and the pipe model.
+//!
+//! - Trunk: a circle fit (RANSAC over 3-point circles, then Kåsa's algebraic
+//!   fit on the inliers and a geometric refinement) on the slice 1.0–1.6 m
+//!   above the trunk base, corrected for the trunk's lean. The fit is used
+//!   only when enough inliers surround the centre; otherwise the DBH is
+//!   estimated from height and crown diameter with an allometric rule, and
+//!   [`DbhMethod::Estimated`] says so (airborne scans rarely see the trunk).
+//! - Branches: the pipe model of airborne-lidar-tree-modeling §5.5, Eq. 6:
+//!   the squared radius of a segment is the sum of its children's squared
+//!   radii, so with equal tips a node's radius is `r_tip·√(tips above it)`;
+//!   `r_tip` is chosen so that the trunk at breast height matches the DBH.
+//!   Radii then taper linearly along each chain and never grow towards the
+//!   tips.
+
+use glam::{Vec2, Vec3};
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+use super::dense::point_segment_distance;
+use super::metrics::Crown;
+use crate::cloud::PointCloud;
+use crate::skeleton::{NodeId, Skeleton};
+use crate::spatial::PointIndex;
+
+/// Settings of the radius stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Height above the trunk base where the DBH is measured, in metres.
+    pub breast_height_m: f32,
+    /// The trunk slice used for the fit, heights above the base in metres.
+    pub slice_m: (f32, f32),
+    /// Points farther than this from the trunk axis are not trunk, in metres.
+    pub search_radius_m: f32,
+    /// Fewest inliers for a fitted DBH.
+    pub min_trunk_points: usize,
+    /// Fewest of 12 sectors (30° each) around the centre that must hold
+    /// inliers: 4 means the trunk was seen over at least a third of its
+    /// girth, as a terrestrial scan from one side sees it.
+    pub min_sectors: u32,
+    /// Smallest branch radius, in metres.
+    pub min_radius_m: f32,
+    /// Measure radii from the points around each internode where enough
+    /// points are (dense scans); the pipe model fills in elsewhere.
+    pub measured_radii: bool,
+    /// Fewest points around an internode for a measured radius.
+    pub min_section_points: usize,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            breast_height_m: 1.3,
+            slice_m: (1.0, 1.6),
+            search_radius_m: 1.0,
+            min_trunk_points: 30,
+            min_sectors: 4,
+            min_radius_m: 0.002,
+            measured_radii: true,
+            min_section_points: 8,
+        }
+    }
+}
+
+/// How the DBH was obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DbhMethod {
+    /// A circle fitted to trunk points at breast height.
+    Fitted,
+    /// An allometric estimate from height and crown diameter.
+    Estimated,
+}
+
+/// The trunk radius and how it was obtained.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrunkFit {
+    /// Trunk radius at breast height, in metres.
+    pub radius_m: f32,
+    /// Fitted or estimated.
+    pub method: DbhMethod,
+    /// Fitted trunk centre at breast height (relative to the anchor).
+    pub centre: Option<Vec3>,
+    /// Inliers of the fit (0 when estimated).
+    pub points: usize,
+    /// Sectors of 30° around the centre that hold inliers.
+    pub sectors: u32,
+    /// RMS distance of the inliers to the circle, in metres.
+    pub rms_m: f32,
+    /// Why the fit was or was not used.
+    pub reason: String,
+}
+
+impl TrunkFit {
+    /// Diameter at breast height, in metres.
+    pub fn dbh_m(&self) -> f32 {
+        2.0 * self.radius_m
+    }
+
+    /// A note for [`super::Reconstruction::notes`] when the DBH is estimated.
+    pub fn note(&self) -> Option<String> {
+        (self.method == DbhMethod::Estimated)
+            .then(|| format!("DBH estimated allometrically: {}", self.reason))
+    }
+}
+
+/// A circle in the plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Circle {
+    /// Centre.
+    pub centre: Vec2,
+    /// Radius.
+    pub radius: f32,
+}
+
+/// Fits the trunk, then sets every node's radius (pipe model, tapered,
+/// never growing towards the tips). `tree` holds the tree's points without
+/// ground; it is rebased to the skeleton's anchor if needed.
+pub fn assign_radii(
+    skeleton: &mut Skeleton,
+    tree: &PointCloud,
+    crown: &Crown,
+    params: &Params,
+) -> TrunkFit {
+    let rebased;
+    let tree = if tree.offset == skeleton.anchor().origin {
+        tree
+    } else {
+        rebased = tree.rebased(skeleton.anchor().origin);
+        &rebased
+    };
+    let trunk = fit_trunk(skeleton, &tree.points, crown, params);
+    let reference = breast_height_node(skeleton, params.breast_height_m);
+    pipe_model(skeleton, reference, trunk.radius_m, params.min_radius_m);
+    if params.measured_radii {
+        let measured = measured_radii(skeleton, &tree.points, params.min_section_points);
+        blend_measured(skeleton, &measured, trunk.method == DbhMethod::Fitted);
+    }
+    trunk
+}
+
+/// Per node, the median distance from the points around its incoming
+/// internode to that internode's axis, where at least `min_points` points
+/// are closest to it. Points pick their internode through the nearest of
+/// axis samples taken every 5 cm.
+fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Vec<Option<f32>> {
+    let mut samples = Vec::new();
+    let mut owner = Vec::new();
+    for (p, c) in skeleton.internodes() {
+        let (a, b) = (skeleton.position(p), skeleton.position(c));
+        let steps = (a.distance(b) / 0.05).ceil().max(1.0) as usize;
+        for i in 0..=steps {
+            samples.push(a.lerp(b, i as f32 / steps as f32));
+            owner.push(c);
+        }
+    }
+    let mut found: Vec<Vec<f32>> = vec![Vec::new(); skeleton.len()];
+    let index = PointIndex::new(&samples);
+    for &q in points {
+        if let Some(n) = index.nearest(q) {
+            let c = owner[n.index];
+            let p = skeleton.parent(c).unwrap_or(NodeId::ROOT);
+            let d = point_segment_distance(q, skeleton.position(p), skeleton.position(c));
+            found[c.index()].push(d);
+        }
+    }
+    found
+        .into_iter()
+        .map(|mut d| {
+            (d.len() >= min_points.max(1)).then(|| {
+                let mid = d.len() / 2;
+                *d.select_nth_unstable_by(mid, f32::total_cmp).1
+            })
+        })
+        .collect()
+}
+
+/// Replaces pipe-model radii by measured ones where the data supports a
+/// measurement, smooths them along the tree (each node averaged with its
+/// parent and main child), and restores the rule that radii never grow
+/// towards the tips. With a fitted trunk the measured values are capped at
+/// twice the pipe model, so that leaves caught between branches cannot
+/// inflate a twig.
+fn blend_measured(skeleton: &mut Skeleton, measured: &[Option<f32>], fitted_trunk: bool) {
+    let pipe: Vec<f32> = skeleton.ids().map(|id| skeleton.radius(id)).collect();
+    let raw: Vec<f32> = skeleton
+        .ids()
+        .map(|id| match measured[id.index()] {
+            Some(m) if fitted_trunk => m.min(2.0 * pipe[id.index()]),
+            Some(m) => m,
+            None => pipe[id.index()],
+        })
+        .collect();
+    for id in skeleton.ids().skip(1) {
+        let mut sum = raw[id.index()];
+        let mut n = 1.0;
+        if let Some(p) = skeleton.parent(id).filter(|&p| p != NodeId::ROOT) {
+            sum += raw[p.index()];
+            n += 1.0;
+        }
+        if let Some(&c) = skeleton.children(id).first() {
+            sum += raw[c.index()];
+            n += 1.0;
+        }
+        skeleton.set_radius(id, sum / n);
+    }
+    let first = skeleton
+        .children(NodeId::ROOT)
+        .first()
+        .map(|c| skeleton.radius(*c));
+    if let Some(r) = first {
+        skeleton.set_radius(NodeId::ROOT, skeleton.radius(NodeId::ROOT).max(r));
+    }
+    for id in skeleton.ids().skip(1) {
+        if let Some(p) = skeleton.parent(id) {
+            skeleton.set_radius(id, skeleton.radius(id).min(skeleton.radius(p)));
+        }
+    }
+}
+
+/// Fits the trunk circle at breast height, or estimates it.
+pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &Params) -> TrunkFit {
+    let estimate = |reason: String| TrunkFit {
+        radius_m: 0.5 * allometric_dbh_m(crown.height_m, crown.diameter_m),
+        method: DbhMethod::Estimated,
+        centre: None,
+        points: 0,
+        sectors: 0,
+        rms_m: 0.0,
+        reason,
+    };
+    let base_z = skeleton.position(NodeId::ROOT).z;
+    let Some((axis_point, axis_dir)) = trunk_axis_at(skeleton, params.breast_height_m) else {
+        return estimate(format!(
+            "the skeleton's trunk does not reach {:.1} m",
+            params.breast_height_m
+        ));
+    };
+    // Project slice points along the trunk axis onto the breast-height plane.
+    let (lo, hi) = (base_z + params.slice_m.0, base_z + params.slice_m.1);
+    // Only points whose nearest internode is on the trunk: branches that
+    // leave the trunk inside the slice would pull the circle off.
+    let orders = skeleton.branch_orders();
+    let nearby: Vec<(Vec3, Vec3, bool)> = skeleton
+        .internodes()
+        .map(|(p, c)| {
+            (
+                skeleton.position(p),
+                skeleton.position(c),
+                orders[c.index()] == 0,
+            )
+        })
+        .filter(|(a, b, _)| a.z.min(b.z) <= hi + 0.5 && a.z.max(b.z) >= lo - 0.5)
+        .collect();
+    let on_trunk = |p: Vec3| {
+        let nearest = nearby
+            .iter()
+            .map(|&(a, b, trunk)| (point_segment_distance(p, a, b), trunk))
+            .min_by(|x, y| x.0.total_cmp(&y.0));
+        nearest.is_some_and(|(d, trunk)| trunk && d <= params.search_radius_m)
+    };
+    let flat: Vec<Vec2> = points
+        .iter()
+        .copied()
+        .filter(|p| p.z >= lo && p.z <= hi && on_trunk(*p))
+        .map(|p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
+        .collect();
+    if flat.len() < params.min_trunk_points {
+        return estimate(format!(
+            "only {} trunk points at {:.1}–{:.1} m (at least {} needed)",
+            flat.len(),
+            params.slice_m.0,
+            params.slice_m.1,
+            params.min_trunk_points
+        ));
+    }
+    let Some((circle, inliers)) = robust_circle(&flat, params.search_radius_m) else {
+        return estimate(format!("no circle fits the {} trunk points", flat.len()));
+    };
+    let sectors = sectors_seen(&inliers, circle.centre);
+    let rms = (inliers
+        .iter()
+        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
+        .sum::<f32>()
+        / inliers.len() as f32)
+        .sqrt();
+    let fitted = TrunkFit {
+        radius_m: circle.radius,
+        method: DbhMethod::Fitted,
+        centre: Some(circle.centre.extend(axis_point.z)),
+        points: inliers.len(),
+        sectors,
+        rms_m: rms,
+        reason: String::new(),
+    };
+    if inliers.len() < params.min_trunk_points || sectors < params.min_sectors {
+        return TrunkFit {
+            reason: format!(
+                "the trunk fit has {} inliers over {} of 12 sectors (at least {} over {} needed)",
+                inliers.len(),
+                sectors,
+                params.min_trunk_points,
+                params.min_sectors
+            ),
+            ..estimate(String::new())
+        };
+    }
+    if rms > 0.25 * circle.radius {
+        return estimate(format!(
+            "the trunk points scatter {:.1} cm around a {:.1} cm circle",
+            rms * 100.0,
+            circle.radius * 100.0
+        ));
+    }
+    TrunkFit {
+        reason: format!(
+            "circle fitted to {} of {} trunk points over {} of 12 sectors, RMS {:.1} mm",
+            inliers.len(),
+            flat.len(),
+            sectors,
+            rms * 1000.0
+        ),
+        ..fitted
+    }
+}
+
+/// DBH from tree height and crown diameter (both metres), after the global
+/// angiosperm allometry of Jucker et al. (2017): `D_cm = 0.557·(H·CD)^0.809`.
+pub fn allometric_dbh_m(height_m: f32, crown_diameter_m: f32) -> f32 {
+    let hcd = height_m.max(0.0) * crown_diameter_m.max(0.1);
+    0.01 * 0.557 * hcd.powf(0.809)
+}
+
+/// The point and direction of the trunk (the root's main-extension chain) at
+/// `height_m` above the base, or `None` when the trunk is lower.
+fn trunk_axis_at(skeleton: &Skeleton, height_m: f32) -> Option<(Vec3, Vec3)> {
+    let base_z = skeleton.position(NodeId::ROOT).z;
+    let mut node = NodeId::ROOT;
+    while let Some(&next) = skeleton.children(node).first() {
+        let (a, b) = (skeleton.position(node), skeleton.position(next));
+        if b.z - base_z >= height_m && b.z > a.z {
+            let t = (base_z + height_m - a.z) / (b.z - a.z);
+            let dir = (b - a).normalize();
+            // A trunk leaning more than 45° is no trunk to fit.
+            return (dir.z > std::f32::consts::FRAC_1_SQRT_2)
+                .then(|| (a.lerp(b, t.clamp(0.0, 1.0)), dir));
+        }
+        node = next;
+    }
+    None
+}
+
+/// The trunk node at or just above breast height (the root for short trees).
+fn breast_height_node(skeleton: &Skeleton, height_m: f32) -> NodeId {
+    let base_z = skeleton.position(NodeId::ROOT).z;
+    let mut node = NodeId::ROOT;
+    while let Some(&next) = skeleton.children(node).first() {
+        if skeleton.position(next).z - base_z >= height_m {
+            return next;
+        }
+        node = next;
+    }
+    NodeId::ROOT
+}
+
+/// RANSAC over 3-point circles, then a least-squares refit on the inliers.
+/// Returns the circle and its inliers.
+pub fn robust_circle(points: &[Vec2], max_radius: f32) -> Option<(Circle, Vec<Vec2>)> {
+    if points.len() < 3 {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x5117a);
+    let band = |c: &Circle| 0.01 + 0.05 * c.radius;
+    let inliers_of = |c: &Circle| -> Vec<Vec2> {
+        points
+            .iter()
+            .copied()
+            .filter(|p| (p.distance(c.centre) - c.radius).abs() <= band(c))
+            .collect()
+    };
+    let mut best: Option<(Circle, usize)> = None;
+    for _ in 0..300 {
+        let pick = [0, 1, 2].map(|_| points[rng.random_range(0..points.len())]);
+        let Some(c) = circle_through(pick) else {
+            continue;
+        };
+        if c.radius > max_radius || c.radius < 0.005 {
+            continue;
+        }
+        let score = points
+            .iter()
+            .filter(|p| (p.distance(c.centre) - c.radius).abs() <= band(&c))
+            .count();
+        if best.is_none_or(|(_, s)| score > s) {
+            best = Some((c, score));
+        }
+    }
+    let (mut circle, _) = best?;
+    let mut inliers = inliers_of(&circle);
+    for _ in 0..3 {
+        circle = refine_circle(&inliers, kasa_fit(&inliers)?);
+        if !(circle.radius.is_finite() && circle.radius <= max_radius) {
+            return None;
+        }
+        inliers = inliers_of(&circle);
+        if inliers.len() < 3 {
+            return None;
+        }
+    }
+    Some((circle, inliers))
+}
+
+/// The circle through three points, `None` when they are collinear.
+fn circle_through([a, b, c]: [Vec2; 3]) -> Option<Circle> {
+    let (b, c) = (b - a, c - a);
+    let d = 2.0 * b.perp_dot(c);
+    if d.abs() < 1e-9 {
+        return None;
+    }
+    let (bb, cc) = (b.length_squared(), c.length_squared());
+    let centre = Vec2::new(c.y * bb - b.y * cc, b.x * cc - c.x * bb) / d;
+    Some(Circle {
+        centre: centre + a,
+        radius: centre.length(),
+    })
+}
+
+/// Kåsa's algebraic circle fit: least squares on `x² + y² + D·x + E·y + F = 0`.
+pub fn kasa_fit(points: &[Vec2]) -> Option<Circle> {
+    if points.len() < 3 {
+        return None;
+    }
+    // Centre the data for numerical stability.
+    let mean = points.iter().copied().sum::<Vec2>() / points.len() as f32;
+    let (mut sxx, mut sxy, mut syy, mut sxz, mut syz) = (0f64, 0f64, 0f64, 0f64, 0f64);
+    for p in points {
+        let (x, y) = (f64::from(p.x - mean.x), f64::from(p.y - mean.y));
+        let z = x * x + y * y;
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        sxz += x * z;
+        syz += y * z;
+    }
+    // With centred data the normal equations decouple F: solve for the centre.
+    let det = sxx * syy - sxy * sxy;
+    if det.abs() < 1e-18 {
+        return None;
+    }
+    let cx = 0.5 * (sxz * syy - syz * sxy) / det;
+    let cy = 0.5 * (syz * sxx - sxz * sxy) / det;
+    let n = points.len() as f64;
+    let r2 = cx * cx + cy * cy + (sxx + syy) / n;
+    Some(Circle {
+        centre: mean + Vec2::new(cx as f32, cy as f32),
+        radius: r2.sqrt() as f32,
+    })
+}
+
+/// Geometric refinement (minimises the distances to the circle, not the
+/// algebraic error) by fixed-point iteration from a starting circle.
+fn refine_circle(points: &[Vec2], start: Circle) -> Circle {
+    let mut c = start;
+    for _ in 0..30 {
+        let dirs: Vec<Vec2> = points
+            .iter()
+            .map(|&p| (p - c.centre).normalize_or_zero())
+            .collect();
+        let radius =
+            points.iter().map(|&p| p.distance(c.centre)).sum::<f32>() / points.len() as f32;
+        let centre = points
+            .iter()
+            .zip(&dirs)
+            .map(|(&p, &u)| p - u * radius)
+            .sum::<Vec2>()
+            / points.len() as f32;
+        let moved = centre.distance(c.centre);
+        c = Circle { centre, radius };
+        if moved < 1e-5 {
+            break;
+        }
+    }
+    c
+}
+
+/// Number of 30° sectors around `centre` that hold at least one point.
+fn sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
+    let mut seen = [false; 12];
+    for p in points {
+        let d = *p - centre;
+        let a = d.y.atan2(d.x) + std::f32::consts::PI;
+        let s = (a / std::f32::consts::TAU * 12.0) as usize;
+        seen[s.min(11)] = true;
+    }
+    seen.iter().filter(|&&s| s).count() as u32
+}
+
+/// Pipe-model radii (Eq. 6) scaled so that `reference` gets `trunk_radius_m`,
+/// tapered along chains and made non-increasing towards the tips.
+fn pipe_model(skeleton: &mut Skeleton, reference: NodeId, trunk_radius_m: f32, min_radius_m: f32) {
+    let mut tips = vec![0u32; skeleton.len()];
+    for id in skeleton.ids().rev() {
+        if skeleton.is_tip(id) {
+            tips[id.index()] = 1;
+        }
+        if let Some(p) = skeleton.parent(id) {
+            tips[p.index()] += tips[id.index()];
+        }
+    }
+    let tip_radius =
+        (trunk_radius_m / (tips[reference.index()].max(1) as f32).sqrt()).max(min_radius_m);
+    let pipe = |id: NodeId| (tip_radius * (tips[id.index()] as f32).sqrt()).max(min_radius_m);
+    skeleton.set_radius(NodeId::ROOT, pipe(NodeId::ROOT).max(trunk_radius_m));
+    for v in skeleton.ids() {
+        if v != NodeId::ROOT && skeleton.children(v).len() == 1 {
+            continue; // not a chain start
+        }
+        let kids: Vec<NodeId> = skeleton.children(v).to_vec();
+        for (k, &first) in kids.iter().enumerate() {
+            let mut chain = vec![first];
+            while let [next] = skeleton.children(*chain.last().unwrap_or(&first)) {
+                chain.push(*next);
+            }
+            let end = *chain.last().unwrap_or(&first);
+            // The main extension continues its parent's taper; a lateral
+            // starts at its own pipe radius.
+            let start_r = if k == 0 {
+                skeleton.radius(v)
+            } else {
+                pipe(first)
+            };
+            let end_r = pipe(end).min(start_r);
+            let mut along = vec![0.0f32; chain.len()];
+            let mut prev = skeleton.position(v);
+            let mut acc = 0.0;
+            for (i, &id) in chain.iter().enumerate() {
+                acc += prev.distance(skeleton.position(id));
+                prev = skeleton.position(id);
+                along[i] = acc;
+            }
+            let total = acc.max(f32::EPSILON);
+            for (&id, &s) in chain.iter().zip(&along) {
+                skeleton.set_radius(id, start_r + (end_r - start_r) * (s / total));
+            }
+        }
+    }
+    // Never grow towards the tips (parents precede children).
+    for id in skeleton.ids().skip(1) {
+        if let Some(p) = skeleton.parent(id) {
+            skeleton.set_radius(id, skeleton.radius(id).min(skeleton.radius(p)));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kasa_and_ransac_recover_a_noisy_half_circle_with_outliers() {
+        let mut pts: Vec<Vec2> = (0..60)
+            .map(|i| {
+                let a = i as f32 / 60.0 * std::f32::consts::PI;
+                let noise = 0.002 * ((i * 7919) % 11) as f32 / 11.0;
+                Vec2::new(2.0, 3.0) + Vec2::new(a.cos(), a.sin()) * (0.25 + noise)
+            })
+            .collect();
+        pts.extend([
+            Vec2::new(2.6, 3.6),
+            Vec2::new(1.5, 2.2),
+            Vec2::new(2.0, 3.0),
+        ]);
+        let (c, inliers) = robust_circle(&pts, 1.0).unwrap();
+        assert!((c.radius - 0.251).abs() < 0.005, "{c:?}");
+        assert!(c.centre.distance(Vec2::new(2.0, 3.0)) < 0.005);
+        assert_eq!(inliers.len(), 60);
+        assert_eq!(sectors_seen(&inliers, c.centre), 6);
+    }
+
+    #[test]
+    fn allometry_grows_with_height_and_crown() {
+        let small = allometric_dbh_m(10.0, 5.0);
+        let big = allometric_dbh_m(25.0, 12.0);
+        assert!(small > 0.1 && small < big && big < 1.2, "{small} {big}");
+    }
+}

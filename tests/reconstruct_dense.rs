@@ -1,0 +1,271 @@
+//! The dense pipeline on synthetic scans with a known skeleton: a Y-shaped
+//! tree sampled on its bark with noise, and the bad inputs of issue 3.
+
+use glam::{DVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use silva::cloud::PointCloud;
+use silva::reconstruct::radii::DbhMethod;
+use silva::reconstruct::{Mode, Options, ReconstructError, reconstruct};
+use silva::{NodeId, Skeleton};
+
+const OFFSET: DVec3 = DVec3::new(155_000.0, 463_000.0, 10.0);
+
+/// The true tree: (start, end, radius) cylinders.
+fn y_tree() -> Vec<(Vec3, Vec3, f32)> {
+    let fork = Vec3::new(0.0, 0.0, 3.0);
+    vec![
+        (Vec3::ZERO, fork, 0.15),
+        (fork, Vec3::new(1.2, 0.0, 5.0), 0.07),
+        (fork, Vec3::new(-0.8, 0.6, 5.2), 0.07),
+    ]
+}
+
+/// Points on the cylinders' bark, about one per `spacing_m`², with
+/// Gaussian-ish noise of a few millimetres.
+fn scan(cylinders: &[(Vec3, Vec3, f32)], spacing_m: f32, seed: u64) -> Vec<Vec3> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut pts = Vec::new();
+    for &(a, b, r) in cylinders {
+        let axis = b - a;
+        let u = axis.normalize();
+        let e1 = u.any_orthonormal_vector();
+        let e2 = u.cross(e1);
+        let area = std::f32::consts::TAU * r * axis.length();
+        let n = (area / (spacing_m * spacing_m)) as usize;
+        for _ in 0..n {
+            let t: f32 = rng.random();
+            let phi: f32 = rng.random::<f32>() * std::f32::consts::TAU;
+            let noise = (rng.random::<f32>() + rng.random::<f32>() - 1.0) * 0.004;
+            pts.push(a + axis * t + (e1 * phi.cos() + e2 * phi.sin()) * (r + noise));
+        }
+    }
+    pts
+}
+
+fn dense() -> Options {
+    Options {
+        mode: Mode::Dense,
+        ..Options::default()
+    }
+}
+
+fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+    p.distance(a + ab * t)
+}
+
+/// Distance from `p` (relative to the cloud offset) to the skeleton's edges.
+fn to_skeleton(s: &Skeleton, p: Vec3) -> f32 {
+    let shift = (s.anchor().origin - OFFSET).as_vec3();
+    s.internodes()
+        .map(|(a, b)| segment_distance(p, s.position(a) + shift, s.position(b) + shift))
+        .fold(f32::INFINITY, f32::min)
+}
+
+#[test]
+fn y_tree_skeleton_radii_and_metrics() {
+    let truth = y_tree();
+    let cloud = PointCloud::from_points(OFFSET, scan(&truth, 0.015, 1));
+    let tree = reconstruct(&cloud, &dense()).unwrap();
+    let s = &tree.skeleton;
+
+    // Georeference: the anchor is the absolute trunk base.
+    let base = s.anchor().origin;
+    assert!((base.x - OFFSET.x).abs() < 0.05 && (base.y - OFFSET.y).abs() < 0.05);
+    assert!((base.z - OFFSET.z).abs() < 0.02, "{base:?}");
+
+    // Precision: every node lies inside the true wood (within 2 cm).
+    let shift = (base - OFFSET).as_vec3();
+    for id in s.ids() {
+        let p = s.position(id) + shift;
+        let outside = truth
+            .iter()
+            .map(|&(a, b, r)| segment_distance(p, a, b) - r)
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            outside < 0.02,
+            "node {id:?} at {p} is {outside} m outside the wood"
+        );
+    }
+    // Recall: the true axes are covered, except the last 15 cm of each
+    // branch (the skeleton ends at the centroid of the last cross-section).
+    for &(a, b, _) in &truth {
+        let len = a.distance(b);
+        let steps = (len / 0.05) as usize;
+        for i in 0..=steps {
+            let t = i as f32 / steps as f32;
+            if t * len > len - 0.15 {
+                continue;
+            }
+            let p = a.lerp(b, t);
+            assert!(to_skeleton(s, p) < 0.1, "true axis point {p} not covered");
+        }
+    }
+    // Two tips (one short bark stub is tolerated).
+    let tips = s.ids().filter(|&id| s.is_tip(id)).count();
+    assert!((2..=3).contains(&tips), "{tips} tips in {} nodes", s.len());
+
+    // Radii never grow towards the tips; the trunk is fitted within 10 %.
+    for id in s.ids().skip(1) {
+        let parent = s.parent(id).unwrap_or(NodeId::ROOT);
+        assert!(s.radius(id) <= s.radius(parent) + 1e-6);
+    }
+    let m = &tree.metrics;
+    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
+    assert!((m.dbh_m / 2.0 - 0.15).abs() < 0.015, "dbh {}", m.dbh_m);
+
+    // Metrics: the highest bark point is the top of the second branch.
+    assert!((m.height_m - 5.27).abs() < 0.1, "height {}", m.height_m);
+    assert!(
+        (m.crown_base_height_m - 3.0).abs() < 0.35,
+        "cbh {}",
+        m.crown_base_height_m
+    );
+    let true_length: f32 = truth.iter().map(|(a, b, _)| a.distance(*b)).sum();
+    assert!(
+        (m.total_branch_length_m - true_length).abs() < 0.6,
+        "length {} vs {true_length}",
+        m.total_branch_length_m
+    );
+    assert_eq!(m.branch_orders[0].count, 1);
+    assert_eq!(m.branch_orders.get(1).map(|o| o.count), Some(1));
+    assert!(m.crown_area_m2 > 0.5 && m.crown_diameter_m > 1.5);
+    let true_volume: f32 = truth
+        .iter()
+        .map(|(a, b, r)| std::f32::consts::PI * r * r * a.distance(*b))
+        .sum();
+    assert!(
+        m.wood_volume_m3 > 0.5 * true_volume && m.wood_volume_m3 < 1.5 * true_volume,
+        "volume {} vs {true_volume}",
+        m.wood_volume_m3
+    );
+}
+
+#[test]
+fn auto_mode_picks_dense_for_a_terrestrial_scan_and_says_why() {
+    let cloud = PointCloud::from_points(OFFSET, scan(&y_tree(), 0.015, 2));
+    let tree = reconstruct(&cloud, &Options::default()).unwrap();
+    assert_eq!(tree.mode, Mode::Dense);
+    assert!(
+        tree.mode_reason.contains("points/m²"),
+        "{}",
+        tree.mode_reason
+    );
+}
+
+#[test]
+fn the_cylinders_fit_the_scan() {
+    let cloud = PointCloud::from_points(OFFSET, scan(&y_tree(), 0.015, 3));
+    let tree = reconstruct(&cloud, &dense()).unwrap();
+    let fit = silva::eval::fit::surface_fit(&tree.skeleton, &cloud);
+    assert!(fit.within_5cm > 0.95, "{fit:?}");
+    assert!(fit.supported_share > 0.75, "{fit:?}");
+}
+
+fn error_of(points: Vec<Vec3>) -> ReconstructError {
+    let cloud = PointCloud::from_points(OFFSET, points);
+    match reconstruct(&cloud, &dense()) {
+        Ok(t) => panic!("expected an error, got {} nodes", t.skeleton.len()),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn too_few_points_is_an_error() {
+    let e = error_of(vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::Y, Vec3::ONE]);
+    assert!(
+        matches!(e, ReconstructError::TooFewPoints { found: 5, .. }),
+        "{e}"
+    );
+}
+
+#[test]
+fn collinear_and_planar_clouds_are_errors() {
+    let line = (0..500)
+        .map(|i| Vec3::new(0.0, 0.0, i as f32 * 0.01))
+        .collect();
+    let e = error_of(line).to_string();
+    assert!(e.contains("line") && e.contains("z axis points up"), "{e}");
+    let plane = (0..2500)
+        .map(|i| Vec3::new((i % 50) as f32 * 0.02, 0.5, (i / 50) as f32 * 0.02))
+        .collect();
+    let e = error_of(plane).to_string();
+    assert!(e.contains("plane"), "{e}");
+}
+
+#[test]
+fn two_separate_trees_are_an_error() {
+    let mut pts = scan(&y_tree(), 0.03, 4);
+    let shifted: Vec<Vec3> = scan(&y_tree(), 0.03, 5)
+        .into_iter()
+        .map(|p| p + Vec3::new(6.0, 0.0, 0.0))
+        .collect();
+    pts.extend(shifted);
+    let e = error_of(pts);
+    assert!(matches!(e, ReconstructError::Disconnected { .. }), "{e}");
+}
+
+#[test]
+fn a_lying_or_upside_down_tree_is_an_error() {
+    let pts = scan(&y_tree(), 0.03, 6);
+    let lying = pts.iter().map(|p| Vec3::new(p.x, p.z, p.y)).collect();
+    let e = error_of(lying).to_string();
+    assert!(e.contains("tilted") && e.contains("z axis"), "{e}");
+    let upside_down = pts.iter().map(|p| Vec3::new(p.x, p.y, -p.z)).collect();
+    let e = error_of(upside_down).to_string();
+    assert!(e.contains("upside down"), "{e}");
+}
+
+#[test]
+fn a_small_stray_cluster_is_dropped_with_a_note() {
+    let mut pts = scan(&y_tree(), 0.02, 7);
+    pts.extend((0..20).map(|i| Vec3::new(4.0 + 0.01 * i as f32, 0.0, 1.0)));
+    let tree = reconstruct(&PointCloud::from_points(OFFSET, pts), &dense()).unwrap();
+    assert!(
+        tree.notes
+            .iter()
+            .any(|n| n.contains("detached part of 20 points")),
+        "{:?}",
+        tree.notes
+    );
+}
+
+#[test]
+fn cli_writes_a_georeferenced_ply_and_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let cloud_path = dir.path().join("tree.xyz");
+    let cloud = PointCloud::from_points(OFFSET, scan(&y_tree(), 0.02, 8));
+    silva::cloud::write_path(&cloud, &cloud_path).unwrap();
+    let ply = dir.path().join("skeleton.ply");
+    let metrics = dir.path().join("metrics.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_silva"))
+        .arg("reconstruct")
+        .arg(&cloud_path)
+        .args(["--mode", "dense", "--skeleton"])
+        .arg(&ply)
+        .arg("--metrics")
+        .arg(&metrics)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("mode dense"), "{stderr}");
+    let text = std::fs::read_to_string(&ply).unwrap();
+    assert!(text.starts_with("ply\nformat ascii 1.0\n") && text.contains("element edge"));
+    let first_vertex = text
+        .lines()
+        .skip_while(|l| *l != "end_header")
+        .nth(1)
+        .unwrap();
+    let xyz: Vec<f64> = first_vertex
+        .split(' ')
+        .map(|t| t.parse().unwrap())
+        .collect();
+    assert!((xyz[0] - OFFSET.x).abs() < 0.05 && (xyz[1] - OFFSET.y).abs() < 0.05);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+    assert_eq!(m["mode"], "dense");
+    assert!(m["metrics"]["height_m"].as_f64().unwrap() > 5.0);
+}
