@@ -4,3 +4,4 @@
 //! point-to-surface fit for real clouds.
 
 pub mod fit;
+pub mod compare;

@@ -30,4 +30,20 @@ pub enum ReconstructError {
     /// The requested pipeline is not part of this build.
     #[error("the {0} reconstruction pipeline is not available in this build")]
     PipelineUnavailable(&'static str),
+    /// Ground removal left too few points for a tree.
+    #[error(
+        "only {tree} points above the ground ({ground} ground points); at least {needed} needed \
+         for a tree"
+    )]
+    NoTreeAboveGround {
+        /// Points left after ground removal.
+        tree: usize,
+        /// Points identified as ground.
+        ground: usize,
+        /// The minimum the pipeline accepts.
+        needed: usize,
+    },
+    /// A reconstruction parameter is out of its valid range.
+    #[error("invalid reconstruction parameters: {0}")]
+    InvalidParameter(String),
 }

@@ -24,8 +24,10 @@ use serde::{Deserialize, Serialize};
 use crate::cloud::PointCloud;
 use crate::skeleton::Skeleton;
 
+pub mod airborne;
 pub mod dense;
 mod error;
+pub mod ground;
 pub mod metrics;
 pub mod radii;
 

@@ -1,0 +1,241 @@
+//! Thinning in voxel space: Hu et al. §5.1.
+//!
+//! The tree points are binned into voxels of pitch d_l; every occupied
+//! ("black") voxel becomes one point at the mean of its points. A sequential
+//! thinning then deletes black voxels that do not change the topology of the
+//! black set — *simple* voxels under (26, 6) connectivity — peeling from the
+//! six face directions in turn so the remainder stays centred, and keeping
+//! curve end voxels so branches do not shrink. What remains are the
+//! candidate skeleton points of the graph. On sparse airborne data most
+//! voxels are isolated and survive; on denser crowns thinning removes the
+//! bulk of the interior.
+//!
+//! [`contract`] then moves each candidate to the mean of the points around
+//! it, which §5.1 does not do; see `Params::contraction_radius_m`.
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Vec3};
+
+use crate::spatial::PointIndex;
+
+/// Offsets of the 26 neighbours and the centre, indexed `(dx+1)·9 + (dy+1)·3
+/// + (dz+1)`; index 13 is the centre.
+const CENTRE: usize = 13;
+
+/// The six face directions, in the peeling order of the subiterations.
+const FACES: [IVec3; 6] = [
+    IVec3::new(0, 0, 1),
+    IVec3::new(0, 0, -1),
+    IVec3::new(1, 0, 0),
+    IVec3::new(-1, 0, 0),
+    IVec3::new(0, 1, 0),
+    IVec3::new(0, -1, 0),
+];
+
+/// Candidate skeleton points of `points`: voxel means of the black voxels
+/// left by sequential thinning at pitch `voxel_m` (§5.1). Sorted by voxel,
+/// so the result does not depend on hashing.
+pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
+    let Some(origin) = points.iter().copied().reduce(Vec3::min) else {
+        return Vec::new();
+    };
+    let mut sums: HashMap<IVec3, (Vec3, u32)> = HashMap::new();
+    for &p in points {
+        // `as` saturates: absurd extents merge into edge voxels, no overflow.
+        let key = ((p - origin) / voxel_m).floor().as_ivec3();
+        let e = sums.entry(key).or_insert((Vec3::ZERO, 0));
+        e.0 += p;
+        e.1 += 1;
+    }
+    let mut voxels: Vec<(IVec3, Vec3)> = sums
+        .into_iter()
+        .map(|(k, (sum, n))| (k, sum / n as f32))
+        .collect();
+    voxels.sort_by_key(|(k, _)| (k.z, k.y, k.x));
+    let mut black: HashMap<IVec3, bool> = voxels.iter().map(|(k, _)| (*k, true)).collect();
+    let masks = Masks::new();
+    loop {
+        let mut deleted = 0;
+        for face in FACES {
+            for (key, _) in &voxels {
+                if black[key] && !is_black(&black, *key + face) {
+                    let here = neighbourhood(&black, *key);
+                    if masks.is_deletable(here) {
+                        black.insert(*key, false);
+                        deleted += 1;
+                    }
+                }
+            }
+        }
+        if deleted == 0 {
+            break;
+        }
+    }
+    voxels
+        .into_iter()
+        .filter(|(k, _)| black[k])
+        .map(|(_, p)| p)
+        .collect()
+}
+
+/// One contraction step: each candidate moves to the mean of the tree
+/// points within `radius_m` of it (unchanged when `radius_m` is 0 or it has
+/// no such points). See `Params::contraction_radius_m`.
+pub(super) fn contract(candidates: &[Vec3], tree: &[Vec3], radius_m: f32) -> Vec<Vec3> {
+    if radius_m <= 0.0 {
+        return candidates.to_vec();
+    }
+    let index = PointIndex::new(tree);
+    candidates
+        .iter()
+        .map(|&c| {
+            let near = index.within(c, radius_m);
+            if near.is_empty() {
+                c
+            } else {
+                near.iter().map(|n| tree[n.index]).sum::<Vec3>() / near.len() as f32
+            }
+        })
+        .collect()
+}
+
+fn is_black(black: &HashMap<IVec3, bool>, key: IVec3) -> bool {
+    black.get(&key).copied().unwrap_or(false)
+}
+
+/// The 3×3×3 neighbourhood of `key` as a 27-bit occupancy mask.
+fn neighbourhood(black: &HashMap<IVec3, bool>, key: IVec3) -> u32 {
+    let mut mask = 0u32;
+    for (i, offset) in offsets().enumerate() {
+        if i != CENTRE && is_black(black, key + offset) {
+            mask |= 1 << i;
+        }
+    }
+    mask
+}
+
+fn offsets() -> impl Iterator<Item = IVec3> {
+    (0..27).map(|i| IVec3::new(i / 9 - 1, (i / 3) % 3 - 1, i % 3 - 1))
+}
+
+/// Precomputed adjacency masks of the 27 neighbourhood positions.
+struct Masks {
+    /// 26-adjacent positions of each position.
+    adj26: [u32; 27],
+    /// 6-adjacent positions of each position.
+    adj6: [u32; 27],
+    /// The 18-neighbourhood of the centre (face and edge neighbours).
+    n18: u32,
+    /// The 6 face neighbours of the centre.
+    n6: u32,
+}
+
+impl Masks {
+    fn new() -> Self {
+        let pos: Vec<IVec3> = offsets().collect();
+        let mut adj26 = [0u32; 27];
+        let mut adj6 = [0u32; 27];
+        for i in 0..27 {
+            for j in 0..27 {
+                let d = (pos[i] - pos[j]).abs();
+                if i != j && d.max_element() <= 1 {
+                    adj26[i] |= 1 << j;
+                    if d.element_sum() == 1 {
+                        adj6[i] |= 1 << j;
+                    }
+                }
+            }
+        }
+        let n18 = (0..27)
+            .filter(|&i| i != CENTRE && pos[i].abs().element_sum() <= 2)
+            .fold(0, |m, i| m | 1 << i);
+        Self {
+            adj26,
+            adj6,
+            n18,
+            n6: adj6[CENTRE],
+        }
+    }
+
+    /// A black voxel may go when it is simple and not a curve end: its black
+    /// 26-neighbours form one 26-component, its white 18-neighbours form one
+    /// 6-component touching a face, and it has at least two black neighbours.
+    fn is_deletable(&self, black: u32) -> bool {
+        if black.count_ones() < 2 {
+            return false;
+        }
+        if self.components(black, &self.adj26, u32::MAX) != 1 {
+            return false;
+        }
+        let white = !black & self.n18;
+        self.components(white, &self.adj6, self.n6) == 1
+    }
+
+    /// Number of connected components of `set` (under `adj`) that contain a
+    /// position of `must_touch`.
+    fn components(&self, set: u32, adj: &[u32; 27], must_touch: u32) -> u32 {
+        let mut left = set;
+        let mut count = 0;
+        while left != 0 {
+            let mut comp = 1u32 << left.trailing_zeros();
+            loop {
+                let mut grow = comp;
+                let mut bits = comp;
+                while bits != 0 {
+                    let i = bits.trailing_zeros() as usize;
+                    grow |= adj[i] & set;
+                    bits &= bits - 1;
+                }
+                if grow == comp {
+                    break;
+                }
+                comp = grow;
+            }
+            left &= !comp;
+            if comp & must_touch != 0 {
+                count += 1;
+            }
+        }
+        count
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_solid_block_thins_to_a_few_voxels_and_a_line_survives() {
+        let mut block = Vec::new();
+        for x in 0..5 {
+            for y in 0..5 {
+                for z in 0..5 {
+                    block.push(Vec3::new(x as f32, y as f32, z as f32) * 0.2 + 0.1);
+                }
+            }
+        }
+        let thinned = thin(&block, 0.2);
+        assert!(
+            !thinned.is_empty() && thinned.len() < 20,
+            "{}",
+            thinned.len()
+        );
+        let line: Vec<Vec3> = (0..10)
+            .map(|z| Vec3::new(0.1, 0.1, z as f32 * 0.2 + 0.1))
+            .collect();
+        assert_eq!(thin(&line, 0.2).len(), 10);
+    }
+
+    #[test]
+    fn isolated_voxels_are_kept_and_averaged() {
+        let pts = [
+            Vec3::new(0.01, 0.01, 0.01),
+            Vec3::new(0.03, 0.03, 0.03),
+            Vec3::splat(2.0),
+        ];
+        let thinned = thin(&pts, 0.2);
+        assert_eq!(thinned.len(), 2);
+        assert!(thinned.iter().any(|p| p.distance(Vec3::splat(0.02)) < 1e-6));
+    }
+}

@@ -1,0 +1,336 @@
+//! Ground separation: which points of a clip are terrain, and how high the
+//! terrain is under the tree.
+//!
+//! Airborne clips (an AHN tile cut around one tree) hold the tree *and* the
+//! ground around it. Ground points must stay out of the skeleton and out of
+//! any trunk fit (AdTree's DBH is off by metres because they enter its trunk
+//! fit), and the terrain height under the trunk is the trunk base, which
+//! tree height and trunk insertion (Hu et al. §4.2, the ground plane of
+//! Eq. 3/4) are measured from.
+//!
+//! Two methods, chosen per cloud:
+//! - **Classification**: the cloud carries ASPRS classes and has class 2
+//!   points; those are the ground.
+//! - **Geometry**: a grid of lowest points. Each 1 m cell's lowest point is a
+//!   terrain candidate; a plane is fitted to the candidates with iteratively
+//!   tightened residual limits, so cells under the crown whose lowest point
+//!   is a branch, and isolated below-ground noise, drop out. The fitted
+//!   plane handles sloped terrain; the inlier cells' residuals refine it
+//!   locally. Points less than [`GROUND_TOLERANCE_M`] above the surface (or
+//!   far below it, which is noise) are ground.
+//!
+//! When no surface covers enough of the clip (an already segmented tree, a
+//! terrestrial scan), the method is [`GroundMethod::None`] and every point
+//! is kept as tree.
+
+use std::collections::HashMap;
+
+use glam::{DMat3, DVec3, Vec2};
+
+use crate::cloud::{CLASS_GROUND, PointCloud};
+
+/// Height above the fitted terrain below which a point counts as ground, in
+/// metres. AHN3's vertical noise is about 5 cm and grass or kerbs add some
+/// decimetres; 0.4 m sits inside the 0.3–0.5 m band that separates ground
+/// from the lowest trunk hits.
+pub const GROUND_TOLERANCE_M: f32 = 0.4;
+
+/// Points this far below the terrain are noise (multipath, birds' shadows in
+/// the return sequence); they are put with the ground so that they never
+/// reach the skeleton.
+const BELOW_GROUND_NOISE_M: f32 = 1.0;
+
+/// Side of a terrain grid cell in metres: at 10–30 pts/m² a cell holds a
+/// dozen points, enough for one to be a ground return where the crown lets
+/// light through.
+const CELL_M: f32 = 1.0;
+
+/// Successive residual limits (m) of the robust plane fit: wide first so that
+/// a tilted start plane does not lose real ground, tight at the end.
+const RESIDUAL_LIMITS_M: [f64; 4] = [2.0, 1.0, 0.5, 0.3];
+
+/// Fewest points for a cell to count as bare ground (AHN3 puts 10–30 in a
+/// 1 m cell of open ground).
+const BARE_CELL_MIN_POINTS: u32 = 5;
+
+/// Share of occupied grid cells that must agree with the fitted surface for
+/// it to be accepted as terrain. Around a tree most cells see ground; a
+/// segmented tree without ground has only its trunk cell near its lowest
+/// level.
+const MIN_GROUND_CELL_SHARE: f64 = 0.25;
+
+/// How the ground was told apart from the tree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GroundMethod {
+    /// LAS class 2 of the cloud's own classification.
+    Classification,
+    /// The robust terrain fit described in the module docs.
+    Geometry,
+    /// No ground found: all points are tree.
+    None,
+}
+
+/// A terrain surface in the cloud's relative coordinates: a fitted plane,
+/// refined per cell by the lowest points that agree with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Terrain {
+    /// Plane `z = a·x + b·y + c` (relative metres), as `[a, b, c]`.
+    plane: [f64; 3],
+    /// Per grid cell: the ground candidate's height minus the plane, for the
+    /// cells whose candidate is terrain.
+    residual_m: HashMap<(i32, i32), f32>,
+    /// Grid origin (relative x, y of cell (0, 0)'s corner).
+    origin: Vec2,
+    /// Number of occupied grid cells, and of those that agree with the surface.
+    cells: (usize, usize),
+    /// Terrain cells that hold only ground: enough points, all within the
+    /// ground tolerance of the lowest.
+    bare_cells: usize,
+}
+
+impl Terrain {
+    /// Terrain height at relative `(x, y)`, in relative metres: the plane,
+    /// corrected by the mean residual of the terrain cells around the query.
+    pub fn height_at(&self, x: f32, y: f32) -> f32 {
+        let [a, b, c] = self.plane;
+        let plane = a * f64::from(x) + b * f64::from(y) + c;
+        let (i, j) = cell_of(self.origin, x, y);
+        let (mut sum, mut n) = (0.0f32, 0u32);
+        for di in -1..=1 {
+            for dj in -1..=1 {
+                if let Some(r) = self
+                    .residual_m
+                    .get(&(i.saturating_add(di), j.saturating_add(dj)))
+                {
+                    sum += r;
+                    n += 1;
+                }
+            }
+        }
+        let local = if n > 0 { sum / n as f32 } else { 0.0 };
+        plane as f32 + local
+    }
+
+    /// Slope of the fitted plane in degrees (0 = level).
+    pub fn slope_deg(&self) -> f32 {
+        let [a, b, _] = self.plane;
+        (a.hypot(b)).atan().to_degrees() as f32
+    }
+
+    /// Share of the occupied grid cells whose lowest point is terrain.
+    pub fn cell_share(&self) -> f32 {
+        let (occupied, terrain) = self.cells;
+        terrain as f32 / occupied.max(1) as f32
+    }
+
+    /// True when the surface is ground rather than the underside of a
+    /// crown: it covers [`MIN_GROUND_CELL_SHARE`] of the clip, and a quarter
+    /// of its cells are bare (open ground around the tree; the bottom layer
+    /// of a crown always has foliage above its lowest points).
+    pub(crate) fn is_ground(&self) -> bool {
+        let (_, terrain) = self.cells;
+        f64::from(self.cell_share()) >= MIN_GROUND_CELL_SHARE
+            && self.bare_cells >= 3
+            && self.bare_cells * 4 >= terrain
+    }
+}
+
+/// A clip split into tree and ground points.
+#[derive(Debug, Clone)]
+pub struct GroundSplit {
+    /// Points that are not ground (the tree, plus anything else standing on
+    /// the terrain), same offset as the input.
+    pub tree: PointCloud,
+    /// Ground points (and below-ground noise), same offset as the input.
+    pub ground: PointCloud,
+    /// How ground was identified.
+    pub method: GroundMethod,
+    /// The terrain surface, when one was found.
+    pub terrain: Option<Terrain>,
+}
+
+impl GroundSplit {
+    /// Terrain height (relative metres) at relative `(x, y)`, when there is
+    /// a terrain surface. Under the trunk this is the trunk base.
+    pub fn ground_height_at(&self, x: f32, y: f32) -> Option<f32> {
+        self.terrain.as_ref().map(|t| t.height_at(x, y))
+    }
+}
+
+/// Splits a cloud into tree and ground points, by LAS class 2 when the cloud
+/// has it and by the terrain fit otherwise (see the module docs).
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::reconstruct::ground::{split_ground, GroundMethod};
+///
+/// // A 10 m × 10 m patch of flat ground and a 5 m pole in its middle.
+/// let mut pts: Vec<Vec3> = (0..1600)
+///     .map(|i| Vec3::new((i % 40) as f32 * 0.25, (i / 40) as f32 * 0.25, 0.0))
+///     .collect();
+/// pts.extend((1..=20).map(|k| Vec3::new(5.1, 5.1, k as f32 * 0.25)));
+/// let split = split_ground(&PointCloud::from_points(DVec3::ZERO, pts));
+/// assert_eq!(split.method, GroundMethod::Geometry);
+/// assert_eq!(split.tree.len(), 19); // the pole above 0.4 m
+/// assert!(split.ground_height_at(5.0, 5.0).unwrap().abs() < 0.05);
+/// ```
+pub fn split_ground(cloud: &PointCloud) -> GroundSplit {
+    if let Some(classes) = &cloud.classification {
+        if classes.len() == cloud.len() && classes.contains(&CLASS_GROUND) {
+            let is_ground: Vec<bool> = classes.iter().map(|&c| c == CLASS_GROUND).collect();
+            let ground = cloud.retain_indices(|i| is_ground[i]);
+            let terrain = fit_terrain(&ground.points);
+            return GroundSplit {
+                tree: cloud.retain_indices(|i| !is_ground[i]),
+                ground,
+                method: GroundMethod::Classification,
+                terrain,
+            };
+        }
+    }
+    match fit_terrain(&cloud.points).filter(Terrain::is_ground) {
+        Some(terrain) => {
+            let is_ground: Vec<bool> = cloud
+                .points
+                .iter()
+                .map(|p| {
+                    let above = p.z - terrain.height_at(p.x, p.y);
+                    above < GROUND_TOLERANCE_M || above < -BELOW_GROUND_NOISE_M
+                })
+                .collect();
+            GroundSplit {
+                tree: cloud.retain_indices(|i| !is_ground[i]),
+                ground: cloud.retain_indices(|i| is_ground[i]),
+                method: GroundMethod::Geometry,
+                terrain: Some(terrain),
+            }
+        }
+        None => GroundSplit {
+            tree: cloud.clone(),
+            ground: PointCloud::new(cloud.offset),
+            method: GroundMethod::None,
+            terrain: None,
+        },
+    }
+}
+
+/// Fits the terrain to the lowest point of each grid cell (module docs).
+/// `None` when there are fewer than three cells to fit a plane to.
+pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
+    let origin = points
+        .iter()
+        .fold(Vec2::splat(f32::INFINITY), |o, p| o.min(p.truncate()));
+    // Per cell: the lowest point, the highest z and the point count.
+    let mut cells: HashMap<(i32, i32), (glam::Vec3, f32, u32)> = HashMap::new();
+    for &p in points {
+        cells
+            .entry(cell_of(origin, p.x, p.y))
+            .and_modify(|(low, high, n)| {
+                if p.z < low.z {
+                    *low = p;
+                }
+                *high = high.max(p.z);
+                *n += 1;
+            })
+            .or_insert((p, p.z, 1));
+    }
+    let bare: std::collections::HashSet<(i32, i32)> = cells
+        .iter()
+        .filter(|(_, (low, high, n))| {
+            *n >= BARE_CELL_MIN_POINTS && high - low.z <= GROUND_TOLERANCE_M
+        })
+        .map(|(k, _)| *k)
+        .collect();
+    let lowest: HashMap<(i32, i32), glam::Vec3> =
+        cells.into_iter().map(|(k, (low, _, _))| (k, low)).collect();
+    if lowest.len() < 3 {
+        return None;
+    }
+    let candidates: Vec<((i32, i32), DVec3)> =
+        lowest.into_iter().map(|(k, p)| (k, p.as_dvec3())).collect();
+    // Start from the lower half of the candidates: under a crown the lowest
+    // point of a cell is often a branch, never lower than the ground.
+    let mut heights: Vec<f64> = candidates.iter().map(|(_, p)| p.z).collect();
+    heights.sort_by(f64::total_cmp);
+    let median = heights[heights.len() / 2];
+    let mut inlier: Vec<bool> = candidates.iter().map(|(_, p)| p.z <= median).collect();
+    let mut plane = fit_plane(&candidates, &inlier)?;
+    for limit in RESIDUAL_LIMITS_M {
+        let next: Vec<bool> = candidates
+            .iter()
+            .map(|(_, p)| (p.z - eval_plane(plane, *p)).abs() <= limit)
+            .collect();
+        if next.iter().filter(|&&b| b).count() < 3 {
+            break;
+        }
+        inlier = next;
+        plane = fit_plane(&candidates, &inlier)?;
+    }
+    let residual_m: HashMap<(i32, i32), f32> = candidates
+        .iter()
+        .zip(&inlier)
+        .filter(|(_, keep)| **keep)
+        .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
+        .collect();
+    let bare_cells = residual_m.keys().filter(|k| bare.contains(k)).count();
+    Some(Terrain {
+        plane,
+        bare_cells,
+        cells: (candidates.len(), residual_m.len()),
+        residual_m,
+        origin,
+    })
+}
+
+fn cell_of(origin: Vec2, x: f32, y: f32) -> (i32, i32) {
+    // `as` saturates, so absurd extents merge into edge cells instead of
+    // overflowing.
+    (
+        ((x - origin.x) / CELL_M).floor() as i32,
+        ((y - origin.y) / CELL_M).floor() as i32,
+    )
+}
+
+fn eval_plane([a, b, c]: [f64; 3], p: DVec3) -> f64 {
+    a * p.x + b * p.y + c
+}
+
+/// Least-squares plane `z = a·x + b·y + c` through the selected candidates,
+/// centred for conditioning. A level plane at their mean height when they
+/// are collinear in plan (a one-cell-wide strip).
+fn fit_plane(candidates: &[((i32, i32), DVec3)], use_it: &[bool]) -> Option<[f64; 3]> {
+    let chosen: Vec<DVec3> = candidates
+        .iter()
+        .zip(use_it)
+        .filter(|(_, u)| **u)
+        .map(|((_, p), _)| *p)
+        .collect();
+    if chosen.is_empty() {
+        return None;
+    }
+    let mean = chosen.iter().copied().sum::<DVec3>() / chosen.len() as f64;
+    let (mut sxx, mut sxy, mut syy, mut sxz, mut syz) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for p in &chosen {
+        let d = *p - mean;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+        sxz += d.x * d.z;
+        syz += d.y * d.z;
+    }
+    let det = sxx * syy - sxy * sxy;
+    let scale = (sxx + syy).max(f64::MIN_POSITIVE);
+    let (a, b) = if det.abs() <= 1e-9 * scale * scale {
+        (0.0, 0.0)
+    } else {
+        let m = DMat3::from_cols(
+            DVec3::new(sxx, sxy, 0.0),
+            DVec3::new(sxy, syy, 0.0),
+            DVec3::Z,
+        );
+        let ab = m.inverse() * DVec3::new(sxz, syz, 0.0);
+        (ab.x, ab.y)
+    };
+    Some([a, b, mean.z - a * mean.x - b * mean.y])
+}

@@ -1,0 +1,409 @@
+//! The airborne pipeline (Hu et al.) on synthetic AHN-like scans from
+//! `silva::synth`: accuracy against the true skeleton, ground handling,
+//! georeference, and degenerate input.
+
+use glam::{DVec3, Vec2, Vec3};
+use proptest::prelude::*;
+use silva::cloud::{CLASS_GROUND, PointCloud};
+use silva::eval::compare::compare;
+use silva::reconstruct::ReconstructError;
+use silva::reconstruct::airborne::{AirborneResult, Params, reconstruct};
+use silva::reconstruct::ground::{GroundMethod, split_ground};
+use silva::skeleton::{Anchor, NodeId, Skeleton};
+use silva::synth::{AlsOptions, Species, TreeParams, generate, simulate_als};
+
+/// A georeferenced trunk base in EPSG:28992 range: comparisons must work in
+/// absolute coordinates.
+const BASE: DVec3 = DVec3::new(155_000.25, 463_000.75, 1.5);
+
+fn truth(species: Species, seed: u64) -> Skeleton {
+    generate(&TreeParams::preset(species), seed, Anchor::at(BASE))
+}
+
+/// Height of a skeleton: its highest node above its root, in metres.
+fn height(s: &Skeleton) -> f64 {
+    let top = s
+        .ids()
+        .map(|id| s.absolute_position(id).z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    top - s.absolute_position(NodeId::ROOT).z
+}
+
+struct Figures {
+    recall: f32,
+    precision: f32,
+    height_error_m: f64,
+    base_offset_m: f64,
+}
+
+fn figures(species: Species, seed: u64) -> Figures {
+    let truth = truth(species, seed);
+    let cloud = simulate_als(&truth, &AlsOptions::default(), seed);
+    let result = reconstruct(&cloud, &Params::default()).expect("a tree");
+    let c = compare(&truth, &result.skeleton, 0.5, 0.05);
+    let base = result.skeleton.anchor().origin - truth.anchor().origin;
+    println!(
+        "{} {seed}: {} points, {} nodes, recall {:.3}, precision {:.3}, height error {:+.2} m, \
+         base offset {:.2} m",
+        species.name(),
+        cloud.len(),
+        result.skeleton.len(),
+        c.recall,
+        c.precision,
+        height(&result.skeleton) - height(&truth),
+        base.truncate().length()
+    );
+    Figures {
+        recall: c.recall,
+        precision: c.precision,
+        height_error_m: height(&result.skeleton) - height(&truth),
+        base_offset_m: base.truncate().length(),
+    }
+}
+
+/// Excurrent trees (a leader over the trunk) meet the issue's recall and
+/// trunk-base targets; every species meets precision and comes close on
+/// height (the simulator's foliage reaches above the top skeleton node).
+#[test]
+fn synthetic_als_scans_of_excurrent_trees_meet_the_targets() {
+    for (species, seed) in [
+        (Species::Poplar, 1),
+        (Species::Poplar, 2),
+        (Species::Pine, 2),
+        (Species::Pine, 3),
+    ] {
+        let f = figures(species, seed);
+        let name = species.name();
+        assert!(f.recall >= 0.80, "{name} {seed}: recall {}", f.recall);
+        assert!(
+            f.precision >= 0.85,
+            "{name} {seed}: precision {}",
+            f.precision
+        );
+        assert!(
+            f.height_error_m.abs() <= 0.45,
+            "{name} {seed}: height error {}",
+            f.height_error_m
+        );
+        assert!(
+            f.base_offset_m <= 0.5,
+            "{name} {seed}: base offset {}",
+            f.base_offset_m
+        );
+    }
+}
+
+#[test]
+fn synthetic_als_scans_of_broad_crowns_are_precise() {
+    for (species, seed) in [(Species::Oak, 2), (Species::Birch, 2), (Species::Birch, 4)] {
+        let f = figures(species, seed);
+        let name = species.name();
+        assert!(
+            f.precision >= 0.85,
+            "{name} {seed}: precision {}",
+            f.precision
+        );
+        assert!(f.recall >= 0.3, "{name} {seed}: recall {}", f.recall);
+        assert!(
+            f.height_error_m.abs() <= 0.5,
+            "{name} {seed}: height error {}",
+            f.height_error_m
+        );
+        assert!(
+            f.base_offset_m <= 1.0,
+            "{name} {seed}: base offset {}",
+            f.base_offset_m
+        );
+    }
+}
+
+fn reconstruct_scan(opts: &AlsOptions) -> (Skeleton, PointCloud, AirborneResult) {
+    let truth = truth(Species::Pine, 4);
+    let cloud = simulate_als(&truth, opts, 4);
+    let result = reconstruct(&cloud, &Params::default()).expect("a tree");
+    (truth, cloud, result)
+}
+
+#[test]
+fn ground_is_found_by_geometry_on_sloped_terrain_and_kept_out_of_the_skeleton() {
+    let slope = Vec2::new(0.12, -0.05);
+    let labelled = AlsOptions {
+        classify_ground: true,
+        ground_slope: slope,
+        ..AlsOptions::default()
+    };
+    let (truth, cloud, _) = reconstruct_scan(&labelled);
+    let is_ground: Vec<bool> = cloud
+        .classification
+        .as_ref()
+        .expect("labels")
+        .iter()
+        .map(|&c| c == CLASS_GROUND)
+        .collect();
+    let unlabelled = PointCloud {
+        classification: None,
+        ..cloud.clone()
+    };
+    let split = split_ground(&unlabelled);
+    assert_eq!(split.method, GroundMethod::Geometry);
+    let true_ground = is_ground.iter().filter(|&&g| g).count();
+    // Every true ground return is found; what else lands in the ground set
+    // lies within the tolerance band over the terrain (low trunk hits).
+    let ground_z: Vec<f32> = split.ground.points.iter().map(|p| p.z).collect();
+    assert!(
+        split.ground.len() >= true_ground,
+        "{} < {true_ground}",
+        split.ground.len()
+    );
+    assert!(split.ground.len() <= true_ground + true_ground / 100 + 5);
+    let terrain = |p: Vec3| slope.dot(p.truncate());
+    assert!(
+        split
+            .ground
+            .points
+            .iter()
+            .all(|&p| (p.z - terrain(p)).abs() < 0.5),
+        "{:?}",
+        ground_z.iter().fold(f32::MIN, |a, &b| a.max(b))
+    );
+    let under_trunk = split.ground_height_at(0.0, 0.0).expect("terrain");
+    assert!(
+        under_trunk.abs() < 0.1,
+        "terrain under the trunk at {under_trunk}"
+    );
+
+    let result = reconstruct(&unlabelled, &Params::default()).expect("a tree");
+    assert_eq!(result.ground_points, split.ground.len());
+    let s = &result.skeleton;
+    let base = s.anchor().origin - truth.anchor().origin;
+    assert!(base.z.abs() < 0.15, "trunk base z off by {}", base.z);
+    for id in s.ids().skip(1) {
+        let p = (s.absolute_position(id) - truth.anchor().origin).as_vec3();
+        assert!(
+            p.z - terrain(p) > 0.3,
+            "node {id:?} at {p} sits on the ground"
+        );
+    }
+}
+
+#[test]
+fn classified_clips_use_class_2() {
+    let opts = AlsOptions {
+        classify_ground: true,
+        ..AlsOptions::default()
+    };
+    let (_, cloud, result) = reconstruct_scan(&opts);
+    let split = split_ground(&cloud);
+    assert_eq!(split.method, GroundMethod::Classification);
+    let class2 = cloud
+        .classification
+        .as_ref()
+        .unwrap()
+        .iter()
+        .filter(|&&c| c == CLASS_GROUND)
+        .count();
+    assert_eq!(split.ground.len(), class2);
+    assert_eq!(result.ground_points, class2);
+    assert!(result.notes.iter().any(|n| n.contains("class 2")));
+}
+
+#[test]
+fn a_segmented_tree_without_ground_keeps_all_points() {
+    let opts = AlsOptions {
+        ground: false,
+        ..AlsOptions::default()
+    };
+    let (truth, cloud, result) = reconstruct_scan(&opts);
+    assert_eq!(split_ground(&cloud).method, GroundMethod::None);
+    assert_eq!(result.ground_points, 0);
+    assert!(compare(&truth, &result.skeleton, 0.5, 0.05).precision > 0.8);
+}
+
+#[test]
+fn the_skeleton_is_georeferenced_ordered_and_has_pipe_radii() {
+    let (truth, cloud, result) = reconstruct_scan(&AlsOptions::default());
+    let s = &result.skeleton;
+    // Anchor at the absolute trunk base, in the clip's coordinates.
+    let base = s.anchor().origin;
+    assert!((base.truncate() - truth.anchor().origin.truncate()).length() < 0.5);
+    assert!(s.position(NodeId::ROOT).length() < 1e-6);
+    let (lo, hi) = cloud.absolute_bounds().unwrap();
+    for id in s.ids() {
+        let p = s.absolute_position(id);
+        assert!(
+            p.cmpge(lo - 0.01).all() && p.cmple(hi + 0.01).all(),
+            "{p} outside the clip"
+        );
+    }
+    // Children main extension first.
+    let sub = s.subtree_lengths();
+    let weight = |c: NodeId| sub[c.index()] + s.internode_length(c);
+    for id in s.ids() {
+        let kids = s.children(id);
+        assert!(kids.windows(2).all(|w| weight(w[0]) >= weight(w[1])));
+    }
+    // Pipe model (Eq. 6): radii never grow toward the tips.
+    for (p, c) in s.internodes() {
+        assert!(s.radius(p) >= s.radius(c) - 1e-6);
+    }
+    assert!(s.radius(NodeId::ROOT) > 0.05);
+    assert!(result.trunk_points_added >= 2);
+}
+
+#[test]
+fn compare_is_symmetric_in_anchors_and_exact_on_identity() {
+    let t = truth(Species::Birch, 3);
+    let same = compare(&t, &t, 0.05, 0.0);
+    assert_eq!((same.recall, same.precision), (1.0, 1.0));
+    assert!(same.mean_distance_m < 1e-4);
+    let mut moved = t.clone();
+    moved.set_anchor(Anchor::at(t.anchor().origin + DVec3::new(0.0, 0.0, 0.2)));
+    let near = compare(&t, &moved, 0.5, 0.0);
+    assert_eq!((near.recall, near.precision), (1.0, 1.0));
+    assert!(near.mean_distance_m <= 0.2 + 1e-3, "{near:?}");
+    moved.set_anchor(Anchor::at(t.anchor().origin + DVec3::new(100.0, 0.0, 0.0)));
+    let far = compare(&t, &moved, 0.5, 0.0);
+    assert_eq!((far.recall, far.precision), (0.0, 0.0));
+    assert!(far.mean_distance_m > 50.0);
+}
+
+fn cloud_of(points: Vec<Vec3>) -> PointCloud {
+    PointCloud::from_points(DVec3::new(85_000.0, 446_000.0, 0.0), points)
+}
+
+#[test]
+fn a_handful_of_points_is_too_few() {
+    let cloud = cloud_of(vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE]);
+    let err = reconstruct(&cloud, &Params::default()).unwrap_err();
+    assert!(
+        matches!(err, ReconstructError::TooFewPoints { found: 5, .. }),
+        "{err}"
+    );
+    let empty = reconstruct(&cloud_of(Vec::new()), &Params::default()).unwrap_err();
+    assert!(matches!(
+        empty,
+        ReconstructError::TooFewPoints { found: 0, .. }
+    ));
+}
+
+#[test]
+fn collinear_and_planar_points_are_degenerate() {
+    let pole: Vec<Vec3> = (0..60)
+        .map(|k| Vec3::new(1.0, 2.0, k as f32 * 0.2))
+        .collect();
+    let err = reconstruct(&cloud_of(pole), &Params::default()).unwrap_err();
+    assert!(
+        matches!(&err, ReconstructError::Degenerate(m) if m.contains("line")),
+        "{err}"
+    );
+    assert!(err.to_string().contains("z axis points up"));
+
+    let wall: Vec<Vec3> = (0..400)
+        .map(|k| Vec3::new((k % 20) as f32 * 0.3, 0.0, (k / 20) as f32 * 0.3))
+        .collect();
+    let err = reconstruct(&cloud_of(wall), &Params::default()).unwrap_err();
+    assert!(
+        matches!(&err, ReconstructError::Degenerate(m) if m.contains("plane")),
+        "{err}"
+    );
+
+    let field: Vec<Vec3> = (0..1600)
+        .map(|k| {
+            Vec3::new(
+                (k % 40) as f32 * 0.25,
+                (k / 40) as f32 * 0.25,
+                0.02 * (k % 3) as f32,
+            )
+        })
+        .collect();
+    let err = reconstruct(&cloud_of(field), &Params::default()).unwrap_err();
+    assert!(
+        matches!(err, ReconstructError::NoTreeAboveGround { tree: 0, .. }),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_upside_down_clip_is_rejected() {
+    let t = truth(Species::Pine, 4);
+    let mut cloud = simulate_als(&t, &AlsOptions::default(), 4);
+    for p in &mut cloud.points {
+        p.z = -p.z;
+    }
+    let err = reconstruct(&cloud, &Params::default()).unwrap_err();
+    assert!(
+        matches!(&err, ReconstructError::Degenerate(m) if m.contains("upside down")),
+        "{err}"
+    );
+}
+
+#[test]
+fn two_separate_trees_give_a_flagged_best_effort() {
+    let t = truth(Species::Poplar, 2);
+    let one = simulate_als(
+        &t,
+        &AlsOptions {
+            ground: false,
+            ..AlsOptions::default()
+        },
+        2,
+    );
+    let mut points = one.points.clone();
+    points.extend(one.points.iter().map(|p| *p + Vec3::new(30.0, 0.0, 0.0)));
+    let two = PointCloud::from_points(one.offset, points);
+    let result = reconstruct(&two, &Params::default()).expect("best effort");
+    assert!(
+        result.notes.iter().any(|n| n.starts_with("best effort")),
+        "{:?}",
+        result.notes
+    );
+}
+
+#[test]
+fn invalid_parameters_are_rejected() {
+    let cloud = simulate_als(&truth(Species::Pine, 2), &AlsOptions::default(), 2);
+    for params in [
+        Params {
+            voxel_m: 0.0,
+            ..Params::default()
+        },
+        Params {
+            neighbour_radius_m: f32::NAN,
+            ..Params::default()
+        },
+        Params {
+            knn: 0,
+            ..Params::default()
+        },
+        Params {
+            alpha_max_deg: -1.0,
+            ..Params::default()
+        },
+    ] {
+        let err = reconstruct(&cloud, &params).unwrap_err();
+        assert!(
+            matches!(err, ReconstructError::InvalidParameter(_)),
+            "{err}"
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Arbitrary small clouds, with non-finite coordinates mixed in, give a
+    /// skeleton or an error, never a panic.
+    #[test]
+    fn arbitrary_clouds_never_panic(
+        raw in prop::collection::vec((-20.0f32..20.0, -20.0f32..20.0, -5.0f32..25.0), 0..300),
+        poison in 0usize..3,
+    ) {
+        let mut points: Vec<Vec3> = raw.into_iter().map(|(x, y, z)| Vec3::new(x, y, z)).collect();
+        for k in 0..poison.min(points.len()) {
+            points[k].z = f32::NAN;
+        }
+        if let Ok(result) = reconstruct(&cloud_of(points), &Params::default()) {
+            prop_assert!(result.skeleton.nodes().iter().all(|n| n.position.is_finite()));
+        }
+    }
+}
