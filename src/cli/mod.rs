@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod eval;
 mod info;
 mod reconstruct;
 
@@ -22,6 +23,8 @@ enum Command {
     Info(info::Args),
     /// Reconstruct one tree's skeleton with radii and its metrics.
     Reconstruct(reconstruct::Args),
+    /// Measure speed and accuracy on a folder of clouds and on synthetic trees.
+    Eval(eval::Args),
 }
 
 /// Runs the parsed command line.
@@ -29,6 +32,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(args) => info::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Eval(args) => eval::run(args),
     }
 }
 

@@ -109,8 +109,14 @@ mod tests {
     fn table_aligns_and_marks_missing() {
         struct R(u32, Option<f32>);
         let cols = [
-            Column::<R> { header: "n", cell: |r| Some(r.0.to_string()) },
-            Column::<R> { header: "value", cell: |r| r.1.map(|v| format!("{v:.1}")) },
+            Column::<R> {
+                header: "n",
+                cell: |r| Some(r.0.to_string()),
+            },
+            Column::<R> {
+                header: "value",
+                cell: |r| r.1.map(|v| format!("{v:.1}")),
+            },
         ];
         let t = render_table(&[R(1, Some(2.5)), R(100, None)], &cols);
         assert_eq!(t, "  n  value\n  1    2.5\n100      -\n");

@@ -1,0 +1,214 @@
+//! One evaluation row per tree: reconstruct (timed, median of repeats), then
+//! measure against the truth (synthetic trees) or the points (real clouds).
+//!
+//! Plain computation: the CLI (`silva eval`) reads files and writes the
+//! report; this module only turns a cloud (and maybe its truth) into a row.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use super::compare::{SkeletonComparison, compare};
+use super::fit::{SurfaceFit, surface_fit};
+use super::report::{Source, timed_median};
+use crate::cloud::PointCloud;
+use crate::reconstruct::metrics::TreeMetrics;
+use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
+use crate::skeleton::{NodeId, Skeleton};
+
+/// Breast height for DBH, in metres above the trunk base.
+const BREAST_HEIGHT_M: f32 = 1.3;
+
+/// How to evaluate.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// Reconstruction settings (mode auto by default).
+    pub reconstruct: Options,
+    /// Reconstructions per tree; the median wall time is reported.
+    pub repeat: usize,
+    /// Tolerance of recall and precision against a truth, in metres.
+    pub tolerance_m: f32,
+    /// Truth internodes thinner than this do not count towards recall.
+    pub min_truth_radius_m: f32,
+}
+
+/// Figures against a known skeleton.
+#[derive(Debug, Clone, Serialize)]
+pub struct TruthFigures {
+    /// Tolerance used for recall and precision, in metres.
+    pub tolerance_m: f32,
+    /// Minimum truth radius counted in recall, in metres.
+    pub min_truth_radius_m: f32,
+    /// Share of the (radius-filtered) truth length found.
+    pub recall: f32,
+    /// Share of the reconstructed length near the truth.
+    pub precision: f32,
+    /// Mean symmetric skeleton distance, in metres.
+    pub mean_distance_m: f32,
+    /// 95th percentile of the symmetric skeleton distance, in metres.
+    pub p95_distance_m: f32,
+    /// Reconstructed minus true height, in metres.
+    pub height_error_m: f32,
+    /// Reconstructed minus true DBH, in metres.
+    pub dbh_error_m: f32,
+    /// Horizontal distance between the true and reconstructed trunk base, in metres.
+    pub trunk_base_offset_m: f32,
+}
+
+/// One tree's row of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeRow {
+    /// File name or synthetic tree name.
+    pub name: String,
+    /// Real data or synthetic.
+    pub source: Source,
+    /// Points in the input cloud.
+    pub points: usize,
+    /// Pipeline used.
+    pub mode: Option<Mode>,
+    /// Why that pipeline.
+    pub mode_reason: Option<String>,
+    /// Median wall time of one reconstruction, in milliseconds.
+    pub wall_time_ms: f64,
+    /// Number of timed reconstructions.
+    pub runs: usize,
+    /// Input points per second of reconstruction.
+    pub points_per_s: f64,
+    /// Skeleton nodes.
+    pub nodes: usize,
+    /// Tree metrics of the reconstruction.
+    pub metrics: Option<TreeMetrics>,
+    /// Against the truth, for synthetic trees.
+    pub truth: Option<TruthFigures>,
+    /// Point-to-surface fit, for dense reconstructions.
+    pub fit: Option<SurfaceFit>,
+    /// Best efforts flagged by the reconstruction.
+    pub notes: Vec<String>,
+    /// The reconstruction's error, when it failed.
+    pub error: Option<String>,
+}
+
+/// Reconstructs `cloud` and measures the result. A failed reconstruction is
+/// a row with `error` set, not an error of the evaluation.
+pub fn evaluate(
+    name: &str,
+    source: Source,
+    cloud: &PointCloud,
+    truth: Option<&Skeleton>,
+    opts: &EvalOptions,
+) -> (TreeRow, Option<Reconstruction>) {
+    let (result, time) = timed_median(opts.repeat, || reconstruct(cloud, &opts.reconstruct));
+    let mut row = empty_row(name, source, cloud.len(), time, opts.repeat);
+    match result {
+        Err(e) => row.error = Some(e.to_string()),
+        Ok(rec) => {
+            fill(&mut row, &rec, cloud, truth, opts);
+            return (row, Some(rec));
+        }
+    }
+    (row, None)
+}
+
+fn empty_row(name: &str, source: Source, points: usize, time: Duration, runs: usize) -> TreeRow {
+    let secs = time.as_secs_f64();
+    TreeRow {
+        name: name.to_string(),
+        source,
+        points,
+        mode: None,
+        mode_reason: None,
+        wall_time_ms: secs * 1e3,
+        runs: runs.max(1),
+        points_per_s: if secs > 0.0 {
+            points as f64 / secs
+        } else {
+            0.0
+        },
+        nodes: 0,
+        metrics: None,
+        truth: None,
+        fit: None,
+        notes: Vec::new(),
+        error: None,
+    }
+}
+
+fn fill(
+    row: &mut TreeRow,
+    rec: &Reconstruction,
+    cloud: &PointCloud,
+    truth: Option<&Skeleton>,
+    opts: &EvalOptions,
+) {
+    row.mode = Some(rec.mode);
+    row.mode_reason = Some(rec.mode_reason.clone());
+    row.nodes = rec.skeleton.len();
+    row.metrics = Some(rec.metrics.clone());
+    row.notes = rec.notes.clone();
+    row.truth = truth.map(|t| truth_figures(t, rec, opts));
+    if rec.mode == Mode::Dense {
+        row.fit = Some(surface_fit(&rec.skeleton, cloud));
+    }
+}
+
+fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> TruthFigures {
+    let c: SkeletonComparison = compare(
+        truth,
+        &rec.skeleton,
+        opts.tolerance_m,
+        opts.min_truth_radius_m,
+    );
+    let base_offset = (rec.skeleton.anchor().origin - truth.anchor().origin).truncate();
+    TruthFigures {
+        tolerance_m: c.tolerance_m,
+        min_truth_radius_m: opts.min_truth_radius_m,
+        recall: c.recall,
+        precision: c.precision,
+        mean_distance_m: c.mean_distance_m,
+        p95_distance_m: c.p95_distance_m,
+        height_error_m: rec.metrics.height_m - true_height_m(truth),
+        dbh_error_m: rec.metrics.dbh_m - 2.0 * trunk_radius_at(truth, BREAST_HEIGHT_M),
+        trunk_base_offset_m: base_offset.length() as f32,
+    }
+}
+
+/// Height of a skeleton: its highest node above the root, in metres.
+pub fn true_height_m(s: &Skeleton) -> f32 {
+    let base = s.position(NodeId::ROOT).z;
+    s.nodes()
+        .iter()
+        .map(|n| n.position.z - base)
+        .fold(0.0, f32::max)
+}
+
+/// Radius of the trunk (the root's chain of main extensions) at `height_m`
+/// above the root, interpolated along the internode that spans it.
+pub fn trunk_radius_at(s: &Skeleton, height_m: f32) -> f32 {
+    let base = s.position(NodeId::ROOT).z;
+    let mut node = NodeId::ROOT;
+    while let Some(&next) = s.children(node).first() {
+        let (z0, z1) = (s.position(node).z - base, s.position(next).z - base);
+        if z1 >= height_m && z1 > z0 {
+            let t = ((height_m - z0) / (z1 - z0)).clamp(0.0, 1.0);
+            return s.radius(node) + t * (s.radius(next) - s.radius(node));
+        }
+        node = next;
+    }
+    s.radius(node)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::Anchor;
+    use glam::Vec3;
+
+    #[test]
+    fn trunk_radius_interpolates_along_the_main_axis() {
+        let mut s = Skeleton::new(Anchor::default(), 0.4);
+        let a = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
+        s.add_child(a, Vec3::new(0.0, 0.0, 2.0), 0.1);
+        assert!((trunk_radius_at(&s, 1.3) - 0.24).abs() < 1e-5);
+        assert_eq!(true_height_m(&s), 2.0);
+    }
+}
