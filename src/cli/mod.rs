@@ -5,6 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
+mod eval;
 mod info;
 mod reconstruct;
 mod synth;
@@ -25,6 +26,8 @@ enum Command {
     Synth(synth::Args),
     /// Reconstruct one tree's skeleton with radii and its metrics.
     Reconstruct(reconstruct::Args),
+    /// Measure speed and accuracy on a folder of clouds and on synthetic trees.
+    Eval(eval::Args),
 }
 
 /// Runs the parsed command line.
@@ -33,6 +36,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::run(args),
         Command::Synth(args) => synth::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Eval(args) => eval::run(args),
     }
 }
 

@@ -1,7 +1,15 @@
-//! Accuracy and speed evaluation behind `silva eval` (issue 3).
+//! Accuracy and speed evaluation behind `silva eval` (issue 3, item 7).
 //!
-//! Will hold skeleton-to-truth distances, branch recall and precision, and
-//! point-to-surface fit for real clouds.
+//! - [`compare`]: skeleton against a known truth (recall, precision,
+//!   symmetric distances), for synthetic trees;
+//! - [`fit`]: point-to-surface fit of the reconstructed cylinders, for real
+//!   clouds without truth;
+//! - [`run`]: one report row per tree (reconstruction timed as a median);
+//! - [`report`]: the report's table rendering and timing helpers.
+//!
+//! Plain computation; the CLI does the file IO.
 
 pub mod compare;
 pub mod fit;
+pub mod report;
+pub mod run;

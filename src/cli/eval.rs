@@ -1,0 +1,303 @@
+//! `silva eval`: reconstruct every cloud of a folder and/or N synthetic trees
+//! with ground truth, and write one JSON report plus a readable table.
+//!
+//! Figures are for release builds (`cargo run --release -- eval …`); times are
+//! medians over `--repeat` runs because the machines are small and noisy.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use glam::DVec3;
+use serde::Serialize;
+
+use silva::cloud::{ReadOptions, read_path};
+use silva::eval::report::{Column, Source, median, render_table};
+use silva::eval::run::{EvalOptions, TreeRow, evaluate};
+use silva::reconstruct::{Mode, Options};
+use silva::skeleton::Anchor;
+use silva::synth::{
+    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+};
+
+/// Which scanner the synthetic trees are seen by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scan {
+    /// Terrestrial: dense points on the branch surfaces.
+    Tls,
+    /// Airborne: sparse points from above with ground returns.
+    Als,
+}
+
+/// Arguments of `silva eval`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Folder whose point clouds (any supported format) are all evaluated.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Number of synthetic trees with ground truth to evaluate.
+    #[arg(long, default_value_t = 0)]
+    synthetic: usize,
+    /// Scanner for the synthetic trees.
+    #[arg(long, value_enum, default_value_t = Scan::Tls)]
+    scan: Scan,
+    /// Airborne density in points/m² for synthetic ALS scans.
+    #[arg(long, default_value_t = 20.0)]
+    density: f32,
+    /// First seed of the synthetic trees (tree i uses seed + i).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Reconstruction pipeline.
+    #[arg(long, value_enum, default_value_t = Mode::Auto)]
+    mode: Mode,
+    /// Timed reconstructions per tree (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    repeat: usize,
+    /// Recall/precision tolerance in metres [default: 0.10 for tls, 0.5 for als].
+    #[arg(long)]
+    tolerance: Option<f32>,
+    /// Truth branches thinner than this radius (m) do not count in recall
+    /// [default: 0 for tls, 0.05 for als].
+    #[arg(long)]
+    min_truth_radius: Option<f32>,
+    /// Where to write the JSON report.
+    #[arg(long, default_value = "eval-report.json")]
+    report: PathBuf,
+}
+
+#[derive(Serialize)]
+struct Report<'a> {
+    silva_version: &'static str,
+    build: &'static str,
+    scan: Scan,
+    trees: &'a [TreeRow],
+    summary: Summary,
+}
+
+#[derive(Serialize)]
+struct Summary {
+    trees: usize,
+    failed: usize,
+    median_wall_time_ms: Option<f64>,
+    median_recall: Option<f64>,
+    median_precision: Option<f64>,
+}
+
+/// Runs the evaluation and writes the report.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.data.is_some() || args.synthetic > 0,
+        "nothing to evaluate: give --data DIR and/or --synthetic N"
+    );
+    let opts = eval_options(&args);
+    let mut rows = Vec::new();
+    if let Some(dir) = &args.data {
+        rows.extend(eval_folder(dir, &opts)?);
+    }
+    rows.extend((0..args.synthetic).map(|i| eval_synthetic(&args, i, &opts)));
+    let report = Report {
+        silva_version: env!("CARGO_PKG_VERSION"),
+        build: if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+        scan: args.scan,
+        summary: summarise(&rows),
+        trees: &rows,
+    };
+    let json = serde_json::to_string_pretty(&report)?;
+    fs::write(&args.report, json).with_context(|| format!("writing {}", args.report.display()))?;
+    print!("{}", render_table(&rows, &columns()));
+    eprintln!("report written to {}", args.report.display());
+    Ok(())
+}
+
+fn eval_options(args: &Args) -> EvalOptions {
+    let als = args.scan == Scan::Als;
+    EvalOptions {
+        reconstruct: Options {
+            mode: args.mode,
+            ..Options::default()
+        },
+        repeat: args.repeat,
+        tolerance_m: args.tolerance.unwrap_or(if als { 0.5 } else { 0.10 }),
+        min_truth_radius_m: args
+            .min_truth_radius
+            .unwrap_or(if als { 0.05 } else { 0.0 }),
+    }
+}
+
+/// Every regular file of `dir` that reads as a point cloud, by name order.
+fn eval_folder(dir: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<TreeRow>> {
+    let mut files: Vec<PathBuf> = fs::read_dir(dir)
+        .with_context(|| format!("reading folder {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    let mut rows = Vec::new();
+    for path in files {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        match read_path(&path, &ReadOptions::default()) {
+            Ok((cloud, _)) => {
+                eprintln!("eval {name}: {} points", cloud.len());
+                rows.push(evaluate(&name, Source::Data, &cloud, None, opts).0);
+            }
+            Err(e) => eprintln!("eval {name}: skipped, not a point cloud ({e})"),
+        }
+    }
+    Ok(rows)
+}
+
+/// Synthetic tree `i`: species in turn, seed `args.seed + i`, anchored in
+/// EPSG:28992 so that large coordinates are exercised too.
+fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
+    let species = Species::ALL[i % Species::ALL.len()];
+    let seed = args.seed + i as u64;
+    let anchor = Anchor {
+        origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
+        crs: Some("EPSG:28992".into()),
+    };
+    let truth = generate(&TreeParams::preset(species), seed, anchor);
+    let cloud = match args.scan {
+        Scan::Tls => simulate_tls(&truth, &TlsOptions::default(), seed),
+        Scan::Als => {
+            let als = AlsOptions {
+                density_pts_per_m2: args.density,
+                ..AlsOptions::default()
+            };
+            simulate_als(&truth, &als, seed)
+        }
+    };
+    let name = format!(
+        "{}-s{seed}-{}",
+        species.name(),
+        if args.scan == Scan::Als { "als" } else { "tls" }
+    );
+    eprintln!(
+        "eval {name}: {} points, {} true internodes",
+        cloud.len(),
+        truth.internode_count()
+    );
+    evaluate(&name, Source::Synthetic, &cloud, Some(&truth), opts).0
+}
+
+fn summarise(rows: &[TreeRow]) -> Summary {
+    let ok: Vec<&TreeRow> = rows.iter().filter(|r| r.error.is_none()).collect();
+    let of = |f: fn(&TreeRow) -> Option<f64>| {
+        median(&ok.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
+    };
+    Summary {
+        trees: rows.len(),
+        failed: rows.len() - ok.len(),
+        median_wall_time_ms: of(|r| Some(r.wall_time_ms)),
+        median_recall: of(|r| r.truth.as_ref().map(|t| f64::from(t.recall))),
+        median_precision: of(|r| r.truth.as_ref().map(|t| f64::from(t.precision))),
+    }
+}
+
+fn pct(v: f32) -> String {
+    format!("{:.1}", 100.0 * v)
+}
+
+fn columns() -> Vec<Column<TreeRow>> {
+    vec![
+        Column {
+            header: "tree",
+            cell: |r| Some(r.name.clone()),
+        },
+        Column {
+            header: "points",
+            cell: |r| Some(r.points.to_string()),
+        },
+        Column {
+            header: "mode",
+            cell: |r| r.mode.map(|m| m.name().to_string()),
+        },
+        Column {
+            header: "ms",
+            cell: |r| Some(format!("{:.1}", r.wall_time_ms)),
+        },
+        Column {
+            header: "kpts/s",
+            cell: |r| Some(format!("{:.0}", r.points_per_s / 1e3)),
+        },
+        Column {
+            header: "nodes",
+            cell: |r| Some(r.nodes.to_string()),
+        },
+        Column {
+            header: "height",
+            cell: |r| r.metrics.as_ref().map(|m| format!("{:.2}", m.height_m)),
+        },
+        Column {
+            header: "dbh",
+            cell: |r| r.metrics.as_ref().map(|m| format!("{:.3}", m.dbh_m)),
+        },
+        Column {
+            header: "recall%",
+            cell: |r| r.truth.as_ref().map(|t| pct(t.recall)),
+        },
+        Column {
+            header: "prec%",
+            cell: |r| r.truth.as_ref().map(|t| pct(t.precision)),
+        },
+        Column {
+            header: "d_mean",
+            cell: |r| {
+                r.truth
+                    .as_ref()
+                    .map(|t| format!("{:.3}", t.mean_distance_m))
+            },
+        },
+        Column {
+            header: "d_p95",
+            cell: |r| r.truth.as_ref().map(|t| format!("{:.3}", t.p95_distance_m)),
+        },
+        Column {
+            header: "h_err",
+            cell: |r| {
+                r.truth
+                    .as_ref()
+                    .map(|t| format!("{:+.2}", t.height_error_m))
+            },
+        },
+        Column {
+            header: "dbh_err",
+            cell: |r| r.truth.as_ref().map(|t| format!("{:+.3}", t.dbh_error_m)),
+        },
+        Column {
+            header: "base_off",
+            cell: |r| {
+                r.truth
+                    .as_ref()
+                    .map(|t| format!("{:.2}", t.trunk_base_offset_m))
+            },
+        },
+        Column {
+            header: "<2cm%",
+            cell: |r| r.fit.map(|f| pct(f.within_2cm)),
+        },
+        Column {
+            header: "<5cm%",
+            cell: |r| r.fit.map(|f| pct(f.within_5cm)),
+        },
+        Column {
+            header: "fit_mean",
+            cell: |r| r.fit.map(|f| format!("{:.3}", f.mean_distance_m)),
+        },
+        Column {
+            header: "supp%",
+            cell: |r| r.fit.map(|f| pct(f.supported_share)),
+        },
+        Column {
+            header: "error",
+            cell: |r| r.error.clone(),
+        },
+    ]
+}

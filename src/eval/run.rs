@@ -1,0 +1,354 @@
+//! One evaluation row per tree: reconstruct (timed, median of repeats), then
+//! measure against the truth (synthetic trees) or the points (real clouds).
+//!
+//! Plain computation: the CLI (`silva eval`) reads files and writes the
+//! report; this module only turns a cloud (and maybe its truth) into a row.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use super::compare::{SkeletonComparison, compare};
+use super::fit::{SurfaceFit, surface_fit};
+use super::report::{Source, timed_median};
+use crate::cityjson::lod_figures;
+use crate::cloud::PointCloud;
+use crate::encode::chaincode;
+use crate::encode::lsystem::{self, LsJson, LsOptions};
+use crate::reconstruct::metrics::TreeMetrics;
+use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
+use crate::skeleton::{NodeId, Skeleton};
+
+/// Breast height for DBH, in metres above the trunk base.
+const BREAST_HEIGHT_M: f32 = 1.3;
+
+/// How to evaluate.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// Reconstruction settings (mode auto by default).
+    pub reconstruct: Options,
+    /// Reconstructions per tree; the median wall time is reported.
+    pub repeat: usize,
+    /// Tolerance of recall and precision against a truth, in metres.
+    pub tolerance_m: f32,
+    /// Truth internodes thinner than this do not count towards recall.
+    pub min_truth_radius_m: f32,
+}
+
+/// Figures against a known skeleton.
+#[derive(Debug, Clone, Serialize)]
+pub struct TruthFigures {
+    /// Tolerance used for recall and precision, in metres.
+    pub tolerance_m: f32,
+    /// Minimum truth radius counted in recall, in metres.
+    pub min_truth_radius_m: f32,
+    /// Share of the (radius-filtered) truth length found.
+    pub recall: f32,
+    /// Share of the reconstructed length near the truth.
+    pub precision: f32,
+    /// Mean symmetric skeleton distance, in metres.
+    pub mean_distance_m: f32,
+    /// 95th percentile of the symmetric skeleton distance, in metres.
+    pub p95_distance_m: f32,
+    /// Reconstructed minus true height, in metres.
+    pub height_error_m: f32,
+    /// Reconstructed minus true DBH, in metres.
+    pub dbh_error_m: f32,
+    /// Horizontal distance between the true and reconstructed trunk base, in metres.
+    pub trunk_base_offset_m: f32,
+}
+
+/// One tree's row of the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeRow {
+    /// File name or synthetic tree name.
+    pub name: String,
+    /// Real data or synthetic.
+    pub source: Source,
+    /// Points in the input cloud.
+    pub points: usize,
+    /// Pipeline used.
+    pub mode: Option<Mode>,
+    /// Why that pipeline.
+    pub mode_reason: Option<String>,
+    /// Median wall time of one reconstruction, in milliseconds.
+    pub wall_time_ms: f64,
+    /// Number of timed reconstructions.
+    pub runs: usize,
+    /// Input points per second of reconstruction.
+    pub points_per_s: f64,
+    /// Skeleton nodes.
+    pub nodes: usize,
+    /// Tree metrics of the reconstruction.
+    pub metrics: Option<TreeMetrics>,
+    /// Against the truth, for synthetic trees.
+    pub truth: Option<TruthFigures>,
+    /// Point-to-surface fit, for dense reconstructions.
+    pub fit: Option<SurfaceFit>,
+    /// Best efforts flagged by the reconstruction.
+    pub notes: Vec<String>,
+    /// Encoding figures (issue 4).
+    pub encoding: Option<EncodingFigures>,
+    /// Mesh figures per LOD (issue 5).
+    pub lods: Vec<LodRow>,
+    /// The reconstruction's error, when it failed.
+    pub error: Option<String>,
+}
+
+/// LsJSON and chain-code figures of one skeleton.
+#[derive(Debug, Clone, Serialize)]
+pub struct EncodingFigures {
+    /// Internodes of the skeleton.
+    pub internodes: usize,
+    /// LsJSON size, raw, in bytes.
+    pub lsjson_bytes: usize,
+    /// LsJSON size, gzip, in bytes.
+    pub lsjson_gzip_bytes: usize,
+    /// Largest decoded node error of the LsJSON, in metres.
+    pub lsjson_max_error_m: f64,
+    /// Mean decoded node error of the LsJSON, in metres.
+    pub lsjson_mean_error_m: f64,
+    /// LsJSON encode time, in milliseconds.
+    pub lsjson_encode_ms: f64,
+    /// LsJSON parse + decode time, in milliseconds.
+    pub lsjson_decode_ms: f64,
+    /// Chain code figures at r = 3, 5 and 10.
+    pub chain: Vec<ChainRow>,
+}
+
+/// Chain code figures at one resolution.
+#[derive(Debug, Clone, Serialize)]
+pub struct ChainRow {
+    /// Resolution r (voxels per mean internode).
+    pub resolution: f32,
+    /// Symbols of the code.
+    pub symbols: usize,
+    /// Plain binary bytes.
+    pub bytes_binary: usize,
+    /// Gzip bytes.
+    pub bytes_gzip: usize,
+    /// Interpolative-compressed bytes.
+    pub bytes_interpolative: usize,
+    /// Interpolative bytes per internode.
+    pub bytes_per_internode: f64,
+    /// Largest node error, in metres.
+    pub max_error_m: f64,
+    /// The stated bound √3·d/2, in metres.
+    pub error_bound_m: f64,
+    /// Internodes left at each LOD threshold of the code.
+    pub lod_internodes: Vec<usize>,
+    /// Decompress + decode time, in milliseconds.
+    pub decode_ms: f64,
+}
+
+/// Mesh figures at one LOD.
+#[derive(Debug, Clone, Serialize)]
+pub struct LodRow {
+    /// LOD level 0–3.
+    pub lod: u8,
+    /// Triangles of the branch mesh.
+    pub triangles: usize,
+    /// GLB bytes.
+    pub glb_bytes: usize,
+    /// OBJ bytes.
+    pub obj_bytes: usize,
+    /// CityJSON bytes.
+    pub cityjson_bytes: usize,
+    /// GLB build time from the skeleton, in milliseconds.
+    pub glb_build_ms: f64,
+}
+
+/// Reconstructs `cloud` and measures the result. A failed reconstruction is
+/// a row with `error` set, not an error of the evaluation.
+pub fn evaluate(
+    name: &str,
+    source: Source,
+    cloud: &PointCloud,
+    truth: Option<&Skeleton>,
+    opts: &EvalOptions,
+) -> (TreeRow, Option<Reconstruction>) {
+    let (result, time) = timed_median(opts.repeat, || reconstruct(cloud, &opts.reconstruct));
+    let mut row = empty_row(name, source, cloud.len(), time, opts.repeat);
+    match result {
+        Err(e) => row.error = Some(e.to_string()),
+        Ok(rec) => {
+            fill(&mut row, &rec, cloud, truth, opts);
+            return (row, Some(rec));
+        }
+    }
+    (row, None)
+}
+
+fn empty_row(name: &str, source: Source, points: usize, time: Duration, runs: usize) -> TreeRow {
+    let secs = time.as_secs_f64();
+    TreeRow {
+        name: name.to_string(),
+        source,
+        points,
+        mode: None,
+        mode_reason: None,
+        wall_time_ms: secs * 1e3,
+        runs: runs.max(1),
+        points_per_s: if secs > 0.0 {
+            points as f64 / secs
+        } else {
+            0.0
+        },
+        nodes: 0,
+        metrics: None,
+        truth: None,
+        fit: None,
+        notes: Vec::new(),
+        encoding: None,
+        lods: Vec::new(),
+        error: None,
+    }
+}
+
+fn fill(
+    row: &mut TreeRow,
+    rec: &Reconstruction,
+    cloud: &PointCloud,
+    truth: Option<&Skeleton>,
+    opts: &EvalOptions,
+) {
+    row.mode = Some(rec.mode);
+    row.mode_reason = Some(rec.mode_reason.clone());
+    row.nodes = rec.skeleton.len();
+    row.metrics = Some(rec.metrics.clone());
+    row.notes = rec.notes.clone();
+    row.truth = truth.map(|t| truth_figures(t, rec, opts));
+    if rec.mode == Mode::Dense {
+        row.fit = Some(surface_fit(&rec.skeleton, cloud));
+    }
+    row.encoding = Some(encoding_figures(&rec.skeleton));
+    row.lods = lod_figures(&rec.skeleton)
+        .into_iter()
+        .enumerate()
+        .map(|(i, f)| LodRow {
+            lod: i as u8,
+            triangles: f.triangles,
+            glb_bytes: f.glb_bytes,
+            obj_bytes: f.obj_bytes,
+            cityjson_bytes: f.cityjson_bytes,
+            glb_build_ms: f.glb_build.as_secs_f64() * 1e3,
+        })
+        .collect();
+}
+
+/// LsJSON and chain code sizes, errors and times for one skeleton.
+pub fn encoding_figures(skeleton: &Skeleton) -> EncodingFigures {
+    let (ls, enc) = timed_median(1, || lsystem::encode(skeleton, &LsOptions::default()));
+    let text = ls.to_json();
+    let limits = lsystem::Limits::default();
+    let (_, dec) = timed_median(1, || {
+        LsJson::parse(&text, &limits).and_then(|l| lsystem::decode(&l, &limits))
+    });
+    EncodingFigures {
+        internodes: skeleton.internode_count(),
+        lsjson_bytes: text.len(),
+        lsjson_gzip_bytes: gzip_len(text.as_bytes()),
+        lsjson_max_error_m: ls.error().max_m,
+        lsjson_mean_error_m: ls.error().mean_m,
+        lsjson_encode_ms: enc.as_secs_f64() * 1e3,
+        lsjson_decode_ms: dec.as_secs_f64() * 1e3,
+        chain: [3.0, 5.0, 10.0]
+            .into_iter()
+            .filter_map(|r| chain_row(skeleton, r))
+            .collect(),
+    }
+}
+
+fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
+    let st = chaincode::stats(skeleton, resolution).ok()?;
+    let opts = chaincode::ChainOptions {
+        resolution: chaincode::Resolution::PerInternode(resolution),
+        ..chaincode::ChainOptions::default()
+    };
+    let bytes = chaincode::encode(skeleton, &opts).ok()?.compress();
+    let limits = chaincode::Limits::default();
+    let (_, dec) = timed_median(5, || {
+        chaincode::ChainCode::decompress(&bytes, &limits).and_then(|c| chaincode::decode(&c))
+    });
+    Some(ChainRow {
+        resolution,
+        symbols: st.symbols,
+        bytes_binary: st.bytes_binary,
+        bytes_gzip: st.bytes_gzip,
+        bytes_interpolative: st.bytes_interpolative,
+        bytes_per_internode: st.bytes_per_internode,
+        max_error_m: st.max_error_m,
+        error_bound_m: st.error_bound_m,
+        lod_internodes: st.lod.iter().map(|l| l.internodes).collect(),
+        decode_ms: dec.as_secs_f64() * 1e3,
+    })
+}
+
+fn gzip_len(bytes: &[u8]) -> usize {
+    use std::io::Write;
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(bytes).expect("writing to memory cannot fail");
+    gz.finish().expect("writing to memory cannot fail").len()
+}
+
+fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> TruthFigures {
+    let c: SkeletonComparison = compare(
+        truth,
+        &rec.skeleton,
+        opts.tolerance_m,
+        opts.min_truth_radius_m,
+    );
+    let base_offset = (rec.skeleton.anchor().origin - truth.anchor().origin).truncate();
+    TruthFigures {
+        tolerance_m: c.tolerance_m,
+        min_truth_radius_m: opts.min_truth_radius_m,
+        recall: c.recall,
+        precision: c.precision,
+        mean_distance_m: c.mean_distance_m,
+        p95_distance_m: c.p95_distance_m,
+        height_error_m: rec.metrics.height_m - true_height_m(truth),
+        dbh_error_m: rec.metrics.dbh_m - 2.0 * trunk_radius_at(truth, BREAST_HEIGHT_M),
+        trunk_base_offset_m: base_offset.length() as f32,
+    }
+}
+
+/// Height of a skeleton: its highest node above the root, in metres.
+pub fn true_height_m(s: &Skeleton) -> f32 {
+    let base = s.position(NodeId::ROOT).z;
+    s.nodes()
+        .iter()
+        .map(|n| n.position.z - base)
+        .fold(0.0, f32::max)
+}
+
+/// Radius of the trunk (the root's chain of main extensions) at `height_m`
+/// above the root, interpolated along the internode that spans it.
+pub fn trunk_radius_at(s: &Skeleton, height_m: f32) -> f32 {
+    let base = s.position(NodeId::ROOT).z;
+    let mut node = NodeId::ROOT;
+    while let Some(&next) = s.children(node).first() {
+        let (z0, z1) = (s.position(node).z - base, s.position(next).z - base);
+        if z1 >= height_m && z1 > z0 {
+            let t = ((height_m - z0) / (z1 - z0)).clamp(0.0, 1.0);
+            return s.radius(node) + t * (s.radius(next) - s.radius(node));
+        }
+        node = next;
+    }
+    s.radius(node)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::skeleton::Anchor;
+    use glam::Vec3;
+
+    #[test]
+    fn trunk_radius_interpolates_along_the_main_axis() {
+        let mut s = Skeleton::new(Anchor::default(), 0.4);
+        let a = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
+        s.add_child(a, Vec3::new(0.0, 0.0, 2.0), 0.1);
+        assert!((trunk_radius_at(&s, 1.3) - 0.24).abs() < 1e-5);
+        assert_eq!(true_height_m(&s), 2.0);
+    }
+}
