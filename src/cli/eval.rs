@@ -296,6 +296,43 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| r.fit.map(|f| pct(f.supported_share)),
         },
         Column {
+            header: "ls_KB",
+            cell: |r| {
+                r.encoding
+                    .as_ref()
+                    .map(|e| format!("{:.1}", e.lsjson_bytes as f64 / 1e3))
+            },
+        },
+        Column {
+            header: "ls_max_mm",
+            cell: |r| {
+                r.encoding
+                    .as_ref()
+                    .map(|e| format!("{:.3}", e.lsjson_max_error_m * 1e3))
+            },
+        },
+        Column {
+            header: "cc5_B/in",
+            cell: |r| {
+                r.encoding
+                    .as_ref()
+                    .and_then(|e| e.chain.iter().find(|c| c.resolution == 5.0))
+                    .map(|c| format!("{:.2}", c.bytes_per_internode))
+            },
+        },
+        Column {
+            header: "lod3_tris",
+            cell: |r| r.lods.get(3).map(|l| l.triangles.to_string()),
+        },
+        Column {
+            header: "lod3_glb_KB",
+            cell: |r| {
+                r.lods
+                    .get(3)
+                    .map(|l| format!("{:.0}", l.glb_bytes as f64 / 1e3))
+            },
+        },
+        Column {
             header: "error",
             cell: |r| r.error.clone(),
         },
