@@ -286,16 +286,20 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("mode dense"), "{stderr}");
-    let text = std::fs::read_to_string(&ply).unwrap();
-    assert!(text.starts_with("ply\nformat ascii 1.0\n") && text.contains("element edge"));
-    let first_vertex = text
-        .lines()
-        .skip_while(|l| *l != "end_header")
-        .nth(1)
-        .unwrap();
-    let xyz: Vec<f64> = first_vertex
-        .split(' ')
-        .map(|t| t.parse().unwrap())
+    let bytes = std::fs::read(&ply).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    assert!(
+        header.starts_with("ply\nformat binary_little_endian 1.0\n"),
+        "{header}"
+    );
+    assert!(header.contains("element edge") && header.contains("property double x"));
+    let xyz: Vec<f64> = (0..3)
+        .map(|k| f64::from_le_bytes(bytes[end + 8 * k..end + 8 * k + 8].try_into().unwrap()))
         .collect();
     assert!((xyz[0] - OFFSET.x).abs() < 0.05 && (xyz[1] - OFFSET.y).abs() < 0.05);
     let m: serde_json::Value =

@@ -5,8 +5,10 @@
 
 use clap::{Parser, Subcommand};
 
+mod codec;
 mod eval;
 mod info;
+mod outputs;
 mod reconstruct;
 mod synth;
 
@@ -26,6 +28,12 @@ enum Command {
     Synth(synth::Args),
     /// Reconstruct one tree's skeleton with radii and its metrics.
     Reconstruct(reconstruct::Args),
+    /// Encode a skeleton as LsJSON and/or a compressed DBF6 chain code.
+    Encode(codec::EncodeArgs),
+    /// Decode LsJSON or a chain code (recognised by content) to a skeleton, mesh or CityJSON.
+    Decode(codec::DecodeArgs),
+    /// Export a skeleton, LsJSON or chain code to meshes, CityJSON or a cylinder table.
+    Export(codec::ExportArgs),
     /// Measure speed and accuracy on a folder of clouds and on synthetic trees.
     Eval(eval::Args),
 }
@@ -37,6 +45,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Synth(args) => synth::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Encode(args) => codec::encode(args),
+        Command::Decode(args) => codec::decode(args),
+        Command::Export(args) => codec::export(args),
     }
 }
 

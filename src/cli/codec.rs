@@ -1,0 +1,138 @@
+//! `silva encode`, `silva decode` and `silva export`: move a skeleton between
+//! its stored forms (LsJSON, DBF6 chain code) and its outputs.
+//!
+//! Inputs are recognised by content, never by name: a chain code starts with
+//! the `SLVC` magic, a silva skeleton JSON has `"format":"silva-skeleton"`,
+//! anything else is parsed as LsJSON (with the reader's expansion limits, so
+//! a hostile file cannot expand without bound).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use silva::Skeleton;
+use silva::encode::chaincode::{self, ChainCode, ChainOptions, Resolution};
+use silva::encode::lsystem::{self, LsJson, LsOptions};
+
+use super::outputs::{Outputs, write};
+
+/// Arguments of `silva encode`.
+#[derive(Debug, clap::Args)]
+pub struct EncodeArgs {
+    /// Skeleton to encode (silva skeleton JSON, LsJSON or chain code).
+    input: PathBuf,
+    /// Write the L-system (LsJSON) here.
+    #[arg(long)]
+    lsystem: Option<PathBuf>,
+    /// Write the interpolative-compressed DBF6 chain code here.
+    #[arg(long)]
+    chaincode: Option<PathBuf>,
+    /// Chain code resolution r: voxels per mean internode length.
+    #[arg(long, default_value_t = 5.0)]
+    resolution: f32,
+    /// LsJSON position tolerance in metres (guaranteed for every node).
+    #[arg(long, default_value_t = 0.001)]
+    tolerance: f32,
+}
+
+/// Arguments of `silva decode`.
+#[derive(Debug, clap::Args)]
+pub struct DecodeArgs {
+    /// LsJSON or chain code (recognised by content).
+    input: PathBuf,
+    #[command(flatten)]
+    outputs: Outputs,
+}
+
+/// Arguments of `silva export`.
+#[derive(Debug, clap::Args)]
+pub struct ExportArgs {
+    /// Skeleton JSON, LsJSON or chain code (recognised by content).
+    input: PathBuf,
+    /// Species, recorded in CityJSON.
+    #[arg(long)]
+    species: Option<String>,
+    #[command(flatten)]
+    outputs: Outputs,
+}
+
+/// Encodes a skeleton as LsJSON and/or chain code, printing sizes and errors.
+pub fn encode(args: EncodeArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.lsystem.is_some() || args.chaincode.is_some(),
+        "nothing to write: give --lsystem and/or --chaincode"
+    );
+    let skeleton = load_skeleton(&args.input)?;
+    let mut summary = serde_json::Map::new();
+    summary.insert("internodes".into(), skeleton.internode_count().into());
+    if let Some(path) = &args.lsystem {
+        let opts = LsOptions {
+            tolerance_m: args.tolerance,
+            ..LsOptions::default()
+        };
+        let ls = lsystem::encode(&skeleton, &opts);
+        let text = ls.to_json();
+        write(path, text.as_bytes())?;
+        summary.insert("lsjson_bytes".into(), text.len().into());
+        summary.insert("lsjson_max_error_m".into(), ls.error().max_m.into());
+    }
+    if let Some(path) = &args.chaincode {
+        let opts = ChainOptions {
+            resolution: Resolution::PerInternode(args.resolution),
+            ..ChainOptions::default()
+        };
+        let code = chaincode::encode(&skeleton, &opts).context("encoding the chain code")?;
+        let bytes = code.compress();
+        write(path, &bytes)?;
+        summary.insert("chaincode_bytes".into(), bytes.len().into());
+        summary.insert(
+            "chaincode_error_bound_m".into(),
+            code.error_bound_m().into(),
+        );
+    }
+    println!("{}", serde_json::Value::Object(summary));
+    Ok(())
+}
+
+/// Decodes LsJSON or a chain code into the requested outputs.
+pub fn decode(args: DecodeArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.outputs.is_empty(),
+        "nothing to write: give --skeleton, --mesh, --cityjson or --cylinders"
+    );
+    args.outputs.validate()?;
+    let skeleton = load_skeleton(&args.input)?;
+    args.outputs.write(&skeleton, None, serde_json::Map::new())
+}
+
+/// Writes meshes, CityJSON, skeleton or cylinder table from any stored form.
+pub fn export(args: ExportArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.outputs.is_empty(),
+        "nothing to write: give --skeleton, --mesh, --cityjson or --cylinders"
+    );
+    args.outputs.validate()?;
+    let skeleton = load_skeleton(&args.input)?;
+    args.outputs
+        .write(&skeleton, args.species, serde_json::Map::new())
+}
+
+/// Reads a skeleton from any of its stored forms, recognised by content.
+pub fn load_skeleton(path: &Path) -> anyhow::Result<Skeleton> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let name = path.display();
+    if chaincode::is_chain_code(&bytes) {
+        let limits = chaincode::Limits::default();
+        let code = ChainCode::decompress(&bytes, &limits)
+            .or_else(|_| ChainCode::from_bytes(&bytes, &limits))
+            .with_context(|| format!("{name}: chain code"))?;
+        return chaincode::decode(&code).with_context(|| format!("{name}: chain code"));
+    }
+    let text = std::str::from_utf8(&bytes)
+        .with_context(|| format!("{name}: neither a chain code nor JSON text"))?;
+    if text.contains("\"silva-skeleton\"") {
+        return Skeleton::from_json(text).with_context(|| format!("{name}"));
+    }
+    let limits = lsystem::Limits::default();
+    let ls = LsJson::parse(text, &limits).with_context(|| format!("{name}"))?;
+    lsystem::decode(&ls, &limits).with_context(|| format!("{name}"))
+}
