@@ -12,12 +12,15 @@
 //!
 //! | level | keeps | ring segments |
 //! |---|---|---|
-//! | [`Lod::L0`] | trunk and first-order branches | 3–6 |
+//! | [`Lod::L0`] | trunk and the first-order branches kept by [`Lod::L1`] | 3–6 |
 //! | [`Lod::L1`] | laterals with base radius ≥ 30 % of the trunk radius | 3–8 |
 //! | [`Lod::L2`] | laterals with base radius ≥ 10 % of the trunk radius | 4–10 |
 //! | [`Lod::L3`] | every branch | 4–12 |
 //!
-//! See docs/lod.md for the reasoning and measured triangle counts.
+//! Levels nest: every branch of a level is in all finer levels. LOD 0 takes
+//! LOD 1's scaffold and keeps only its first-order branches; taking *every*
+//! first-order branch instead would keep the many thin twigs along the trunk
+//! and give LOD 0 more triangles than LOD 1.
 
 use crate::skeleton::{NodeId, Skeleton};
 
@@ -149,14 +152,16 @@ pub fn trunk_radius_m(skeleton: &Skeleton) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// The skeleton of one level: [`Lod::L0`] keeps branch orders 0 and 1,
-/// [`Lod::L1`] and [`Lod::L2`] prune thin laterals ([`prune_thin_branches`]),
+/// The skeleton of one level: [`Lod::L1`] and [`Lod::L2`] prune thin
+/// laterals ([`prune_thin_branches`]), [`Lod::L0`] keeps the branch orders 0
+/// and 1 of the [`Lod::L1`] skeleton,
 /// [`Lod::L3`] keeps everything. The result is in canonical depth-first order.
 pub fn select(skeleton: &Skeleton, lod: Lod) -> Skeleton {
     match lod.radius_threshold_m(skeleton) {
         None => {
-            let keep: Vec<bool> = skeleton.branch_orders().iter().map(|&o| o <= 1).collect();
-            skeleton.retain(&keep)
+            let scaffold = select(skeleton, Lod::L1);
+            let keep: Vec<bool> = scaffold.branch_orders().iter().map(|&o| o <= 1).collect();
+            scaffold.retain(&keep)
         }
         Some(threshold_m) => prune_thin_branches(skeleton, threshold_m),
     }
