@@ -10,6 +10,7 @@ mod eval;
 mod info;
 mod outputs;
 mod reconstruct;
+mod serve;
 mod synth;
 
 /// silva: tree skeletons from LiDAR point clouds.
@@ -36,6 +37,8 @@ enum Command {
     Export(codec::ExportArgs),
     /// Measure speed and accuracy on a folder of clouds and on synthetic trees.
     Eval(eval::Args),
+    /// Run the REST service (SQLite in the working directory unless DATABASE_URL says otherwise).
+    Serve(Box<serve::Args>),
 }
 
 /// Runs the parsed command line.
@@ -48,6 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Encode(args) => codec::encode(args),
         Command::Decode(args) => codec::decode(args),
         Command::Export(args) => codec::export(args),
+        Command::Serve(args) => serve::run(*args),
     }
 }
 

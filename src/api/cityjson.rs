@@ -1,0 +1,255 @@
+//! CityJSON downloads: one tree (`/v1/trees/{id}/cityjson`) and every tree
+//! of an area as a streamed CityJSONSeq (`/v1/cityjson`).
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::body::Body;
+use axum::extract::State;
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use futures::StreamExt;
+use glam::DVec3;
+use serde::Deserialize;
+use serde_json::{Map, Value};
+use utoipa::IntoParams;
+use uuid::Uuid;
+
+use super::cache::{Artifact, ArtifactKind};
+use super::downloads::{current_model, current_skeleton, parse_lod, respond};
+use super::error::Problem;
+use super::extract::{ApiPath, ApiQuery};
+use super::features::parse_bbox;
+use super::{ApiError, AppState, ReadAccess};
+use crate::cityjson::{self, MEDIA_TYPE, MEDIA_TYPE_SEQ, TreeInfo};
+use crate::mesh::Lod;
+use crate::skeleton::Skeleton;
+use crate::store::{TreeFilter, TreeRow};
+
+pub(super) fn routes() -> Router<Arc<AppState>> {
+    Router::new()
+        .route("/v1/trees/{id}/cityjson", get(cityjson))
+        .route("/v1/cityjson", get(cityjson_seq))
+}
+
+/// The CityJSON object of one stored tree: its id, species, and the metrics
+/// of its model as attributes (CityGML `height`, `trunkDiameter` and
+/// `crownDiameter` from the measured metrics).
+fn tree_info<'a>(row: &TreeRow, skeleton: &'a Skeleton) -> TreeInfo<'a> {
+    let mut info = TreeInfo::new(row.id.to_string(), skeleton);
+    info.species.clone_from(&row.species);
+    let metrics: Map<String, Value> = row
+        .metrics
+        .as_deref()
+        .and_then(|m| serde_json::from_str(m).ok())
+        .unwrap_or_default();
+    for (city_name, metric) in [
+        ("height", "height_m"),
+        ("trunkDiameter", "dbh_m"),
+        ("crownDiameter", "crown_diameter_m"),
+    ] {
+        if let Some(value) = metrics.get(metric).filter(|v| v.is_number()) {
+            info.attributes.insert(city_name.into(), value.clone());
+        }
+    }
+    // The remaining scalar metrics as they are; nested ones (per branch
+    // order) stay in the tree JSON.
+    for (name, value) in metrics {
+        if value.is_number() || value.is_string() {
+            info.attributes.entry(name).or_insert(value);
+        }
+    }
+    if let Some(external_id) = &row.external_id {
+        info.attributes
+            .insert("externalId".into(), Value::String(external_id.clone()));
+    }
+    info
+}
+
+/// Level of a CityJSON download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct LodQuery {
+    /// Level of detail 0–3 (default 2).
+    lod: Option<u8>,
+}
+
+/// The tree as a CityJSON 2.0 `SolitaryVegetationObject`: the branch mesh
+/// at the requested LOD as a MultiSurface, the skeleton as a
+/// MultiLineString, CityGML attributes, georeferenced.
+#[utoipa::path(
+    get,
+    path = "/v1/trees/{id}/cityjson",
+    tag = "downloads",
+    params(("id" = Uuid, Path, description = "Tree id"), LodQuery),
+    responses(
+        (status = 200, description = "CityJSON 2.0", body = Object, content_type = "application/city+json",
+            headers(("ETag" = String))),
+        (status = 304, description = "Unchanged"),
+        (status = 400, description = "Bad LOD", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "Not reconstructed yet", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+pub(super) async fn cityjson(
+    State(state): State<Arc<AppState>>,
+    _: ReadAccess,
+    ApiPath(id): ApiPath<Uuid>,
+    ApiQuery(query): ApiQuery<LodQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let lod = parse_lod(query.lod.unwrap_or(2))?;
+    let kind = ArtifactKind::CityJson(lod);
+    let model = current_model(&state, id).await?;
+    if let Some(hit) = state.cache.get(model, kind) {
+        return Ok(respond(hit, &headers));
+    }
+    let row = state
+        .store
+        .tree(id)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(format!("no tree {id}")))?;
+    let (model, skeleton) = current_skeleton(&state, id).await?;
+    let artifact = tokio::task::spawn_blocking(move || {
+        let doc = cityjson::city_json(&tree_info(&row, &skeleton), &[lod]);
+        Artifact::new(doc.to_string(), MEDIA_TYPE)
+    })
+    .await?;
+    state.cache.insert(model, kind, artifact.clone());
+    Ok(respond(artifact, &headers))
+}
+
+/// Area, level and CRS of a CityJSONSeq export.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct SeqQuery {
+    /// `min_x,min_y,max_x,max_y` in the trees' CRS.
+    bbox: String,
+    /// Level of detail 0–3 (default 2).
+    lod: Option<u8>,
+    /// CRS of the export (default: that of the first tree found). Trees in
+    /// another CRS are not part of the stream, since one stream has one
+    /// transform and reference system.
+    crs: Option<String>,
+}
+
+/// Trees per database page while streaming.
+const SEQ_PAGE: u32 = 100;
+
+/// Every reconstructed tree in a bbox as CityJSONSeq: a CityJSON header
+/// line, then one CityJSONFeature line per tree. The stream is produced
+/// page by page, so memory stays flat for any area.
+#[utoipa::path(
+    get,
+    path = "/v1/cityjson",
+    tag = "downloads",
+    params(SeqQuery),
+    responses(
+        (status = 200, description = "CityJSONSeq: newline-delimited CityJSON header and CityJSONFeature objects",
+            body = String, content_type = "application/city+json-seq"),
+        (status = 400, description = "Bad bbox or LOD", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+pub(super) async fn cityjson_seq(
+    State(state): State<Arc<AppState>>,
+    _: ReadAccess,
+    ApiQuery(query): ApiQuery<SeqQuery>,
+) -> Result<Response, ApiError> {
+    let lod = parse_lod(query.lod.unwrap_or(2))?;
+    let mut filter = TreeFilter {
+        bbox: Some(parse_bbox(&query.bbox)?),
+        crs: query.crs,
+        limit: SEQ_PAGE,
+        ..TreeFilter::default()
+    };
+    // The first page fixes the CRS and the transform of the whole stream.
+    let first = state.store.trees_with_skeletons(&filter).await?;
+    let first = parse_page(first)?;
+    if filter.crs.is_none() {
+        filter.crs = first.first().and_then(|(row, _)| row.crs.clone());
+    }
+    // Later pages are filtered by the database.
+    let first: Vec<_> = first
+        .into_iter()
+        .filter(|(row, _)| filter.crs.is_none() || row.crs == filter.crs)
+        .collect();
+    let bbox = filter.bbox.unwrap_or_default();
+    // Millimetre-snapped so that integer vertices stay exact.
+    let translate = DVec3::new(
+        (bbox[0] * 1000.0).round() / 1000.0,
+        (bbox[1] * 1000.0).round() / 1000.0,
+        0.0,
+    );
+    let header = cityjson::seq_header(translate, filter.crs.as_deref(), None).to_string() + "\n";
+    let full_page = first.len() == SEQ_PAGE as usize;
+    let next_after = first.last().map(|(row, _)| row.id);
+    let first_lines = render(first, lod, translate).await;
+    let rest = futures::stream::unfold(
+        (full_page.then_some(next_after).flatten(), filter),
+        move |(after, filter)| {
+            let state = state.clone();
+            async move {
+                let filter = TreeFilter {
+                    after: Some(after?),
+                    ..filter
+                };
+                let page = match state.store.trees_with_skeletons(&filter).await {
+                    Ok(page) => page,
+                    Err(err) => return Some((Err(stream_error(&err)), (None, filter))),
+                };
+                let full = page.len() == SEQ_PAGE as usize;
+                let last = page.last().map(|(row, _)| row.id);
+                let trees = match parse_page(page) {
+                    Ok(trees) => trees,
+                    Err(err) => return Some((Err(stream_error(&err)), (None, filter))),
+                };
+                let lines = render(trees, lod, translate).await;
+                Some((lines, (full.then_some(last).flatten(), filter)))
+            }
+        },
+    );
+    let body = futures::stream::iter([Ok(header), first_lines]).chain(rest);
+    Ok((
+        [(header::CONTENT_TYPE, MEDIA_TYPE_SEQ)],
+        Body::from_stream(body),
+    )
+        .into_response())
+}
+
+/// Skeletons of a page, parsed.
+fn parse_page(page: Vec<(TreeRow, String)>) -> Result<Vec<(TreeRow, Skeleton)>, ApiError> {
+    page.into_iter()
+        .map(|(row, json)| {
+            Skeleton::from_json(&json)
+                .map(|s| (row, s))
+                .map_err(|e| ApiError::Internal(format!("stored skeleton: {e}")))
+        })
+        .collect()
+}
+
+/// The feature lines of some trees, built off the runtime.
+async fn render(
+    trees: Vec<(TreeRow, Skeleton)>,
+    lod: Lod,
+    translate: DVec3,
+) -> Result<String, std::io::Error> {
+    tokio::task::spawn_blocking(move || {
+        let mut out = String::new();
+        for (row, skeleton) in &trees {
+            let feature = cityjson::city_json_feature(&tree_info(row, skeleton), &[lod], translate);
+            out.push_str(&feature.to_string());
+            out.push('\n');
+        }
+        out
+    })
+    .await
+    .map_err(std::io::Error::other)
+}
+
+/// Headers are sent already: the stream ends early, the client sees a
+/// truncated sequence, and the log says why.
+fn stream_error(err: &dyn std::fmt::Display) -> std::io::Error {
+    tracing::error!(error = %err, "CityJSONSeq export stopped");
+    std::io::Error::other(err.to_string())
+}

@@ -1,0 +1,104 @@
+//! Service configuration: CLI flags, each with an environment variable.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+/// Default listen address: local only, so a laptop does not expose it.
+pub const DEFAULT_LISTEN: &str = "127.0.0.1:8080";
+/// Default database: an SQLite file in the working directory, created on demand.
+pub const DEFAULT_DATABASE_URL: &str = "sqlite://silva.db?mode=rwc";
+
+/// Default largest request body: 256 MiB, a dense TLS scan as text.
+pub const DEFAULT_MAX_BODY_BYTES: usize = 256 * 1024 * 1024;
+/// Default largest point cloud.
+pub const DEFAULT_MAX_POINTS: usize = 20_000_000;
+const DEFAULT_TIMEOUT_SECS: u64 = 60;
+const DEFAULT_MAX_CONCURRENT: usize = 1024;
+const DEFAULT_DB_CONNECTIONS: u32 = 16;
+const DEFAULT_LEASE_SECS: u64 = 30;
+const DEFAULT_CACHE_BYTES: usize = 256 * 1024 * 1024;
+
+/// How `silva serve` runs. Every flag can also be set by its environment
+/// variable; flags win.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Config {
+    /// Address to listen on.
+    #[arg(long, env = "SILVA_LISTEN", default_value = DEFAULT_LISTEN)]
+    pub listen: SocketAddr,
+    /// `postgres://user@host/db` or `sqlite://file.db?mode=rwc`.
+    #[arg(long, env = "DATABASE_URL", default_value = DEFAULT_DATABASE_URL, hide_env_values = true)]
+    pub database_url: String,
+    /// API keys accepted as `Authorization: Bearer <key>`, comma-separated.
+    /// Only their SHA-256 hashes are kept in memory. Without keys, write
+    /// routes are open: meant for local use only, and logged as a warning.
+    #[arg(
+        long = "api-keys",
+        env = "SILVA_API_KEYS",
+        value_delimiter = ',',
+        hide_env_values = true
+    )]
+    pub api_keys: Vec<String>,
+    /// Require a key for read routes too.
+    #[arg(long, env = "SILVA_READ_REQUIRES_KEY", default_value_t = false)]
+    pub read_requires_key: bool,
+    /// Largest accepted request body (point cloud upload), in bytes.
+    #[arg(long, env = "SILVA_MAX_BODY_BYTES", default_value_t = DEFAULT_MAX_BODY_BYTES)]
+    pub max_body_bytes: usize,
+    /// Largest accepted point cloud, in points.
+    #[arg(long, env = "SILVA_MAX_POINTS", default_value_t = DEFAULT_MAX_POINTS)]
+    pub max_points: usize,
+    /// Time limit of one request, in seconds (uploads with `?wait=true`
+    /// answer 202 instead when the job is not finished by then).
+    #[arg(long, env = "SILVA_REQUEST_TIMEOUT_SECS", default_value_t = DEFAULT_TIMEOUT_SECS)]
+    pub request_timeout_secs: u64,
+    /// Requests handled at once; more wait in line.
+    #[arg(long, env = "SILVA_MAX_CONCURRENT_REQUESTS", default_value_t = DEFAULT_MAX_CONCURRENT)]
+    pub max_concurrent_requests: usize,
+    /// Concurrent reconstructions in this process (default: CPU count; 0
+    /// makes a pure API node that leaves jobs to other processes).
+    #[arg(long, env = "SILVA_WORKERS")]
+    pub workers: Option<usize>,
+    /// Database connections in the pool.
+    #[arg(long, env = "SILVA_DB_MAX_CONNECTIONS", default_value_t = DEFAULT_DB_CONNECTIONS)]
+    pub db_max_connections: u32,
+    /// Seconds a job stays claimed without a heartbeat before another worker
+    /// may take it over.
+    #[arg(long, env = "SILVA_JOB_LEASE_SECS", default_value_t = DEFAULT_LEASE_SECS)]
+    pub job_lease_secs: u64,
+    /// Bytes of generated meshes and documents kept in memory for downloads.
+    #[arg(long, env = "SILVA_CACHE_BYTES", default_value_t = DEFAULT_CACHE_BYTES)]
+    pub cache_bytes: usize,
+}
+
+impl Config {
+    /// The defaults for `database_url`, as `silva serve` would use them with
+    /// no flags and no environment (tests build on this).
+    pub fn new(database_url: impl Into<String>) -> Self {
+        Self {
+            listen: DEFAULT_LISTEN.parse().expect("the default address parses"),
+            database_url: database_url.into(),
+            api_keys: Vec::new(),
+            read_requires_key: false,
+            max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            max_points: DEFAULT_MAX_POINTS,
+            request_timeout_secs: DEFAULT_TIMEOUT_SECS,
+            max_concurrent_requests: DEFAULT_MAX_CONCURRENT,
+            workers: None,
+            db_max_connections: DEFAULT_DB_CONNECTIONS,
+            job_lease_secs: DEFAULT_LEASE_SECS,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+        }
+    }
+
+    /// The request time limit.
+    pub fn request_timeout(&self) -> Duration {
+        Duration::from_secs(self.request_timeout_secs.max(1))
+    }
+
+    /// Worker count, the CPU count unless set.
+    pub fn worker_count(&self) -> usize {
+        self.workers.unwrap_or_else(|| {
+            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+        })
+    }
+}

@@ -1,0 +1,264 @@
+//! JSON documents of the API: trees, jobs, GeoJSON features, links.
+
+use serde::{Deserialize, Serialize};
+use time::OffsetDateTime;
+use time::format_description::well_known::Rfc3339;
+use utoipa::ToSchema;
+use uuid::Uuid;
+
+use crate::store::{JobRow, JobState, TreeRow};
+
+/// A hyperlink (RFC 8288 / OGC API style).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Link {
+    /// Where it points.
+    pub href: String,
+    /// Relation: `self`, `next`, `skeleton`, …
+    pub rel: String,
+    /// Media type of the target.
+    #[serde(rename = "type", default, skip_serializing_if = "Option::is_none")]
+    pub media_type: Option<String>,
+}
+
+impl Link {
+    /// A link with a media type.
+    pub fn new(href: String, rel: &str, media_type: &str) -> Self {
+        Self {
+            href,
+            rel: rel.to_owned(),
+            media_type: Some(media_type.to_owned()),
+        }
+    }
+}
+
+/// A tree: metadata, location, metrics of its current model, links.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Tree {
+    /// Tree id.
+    pub id: Uuid,
+    /// The inventory's own id.
+    pub external_id: Option<String>,
+    /// Species name.
+    pub species: Option<String>,
+    /// CRS of `location`.
+    pub crs: Option<String>,
+    /// Trunk base `[x, y, z]`, absolute; null until the first model.
+    pub location: Option<[f64; 3]>,
+    /// Height in metres; null until the first model.
+    pub height_m: Option<f64>,
+    /// Metrics of the current model (height, crown, DBH, …); null until then.
+    #[schema(value_type = Option<Object>)]
+    pub metrics: Option<serde_json::Value>,
+    /// The current model; null until the first reconstruction succeeds.
+    pub model_id: Option<Uuid>,
+    /// Incremented on every change.
+    pub version: i64,
+    /// RFC 3339.
+    pub created_at: String,
+    /// RFC 3339.
+    pub updated_at: String,
+    /// The tree and its downloads.
+    pub links: Vec<Link>,
+}
+
+impl Tree {
+    /// The document for a stored tree; links relative to `base`.
+    pub fn from_row(row: &TreeRow, base: &str) -> Self {
+        let own = format!("{base}/v1/trees/{}", row.id);
+        let mut links = vec![Link::new(own.clone(), "self", "application/json")];
+        if row.model_id.is_some() {
+            for (path, rel, ty) in [
+                ("skeleton", "skeleton", "application/json"),
+                ("lsystem", "lsystem", "application/json"),
+                ("chaincode", "chaincode", "application/octet-stream"),
+                ("mesh?format=glb&lod=1", "mesh", "model/gltf-binary"),
+                ("cityjson?lod=2", "cityjson", "application/city+json"),
+            ] {
+                links.push(Link::new(format!("{own}/{path}"), rel, ty));
+            }
+        }
+        Self {
+            id: row.id,
+            external_id: row.external_id.clone(),
+            species: row.species.clone(),
+            crs: row.crs.clone(),
+            location: row.location(),
+            height_m: row.height_m,
+            metrics: row
+                .metrics
+                .as_deref()
+                .and_then(|m| serde_json::from_str(m).ok()),
+            model_id: row.model_id,
+            version: row.version,
+            created_at: rfc3339(row.created_at_ms),
+            updated_at: rfc3339(row.updated_at_ms),
+            links,
+        }
+    }
+}
+
+/// A job: state and progress of a reconstruction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Job {
+    /// Job id.
+    pub id: Uuid,
+    /// What it does: `reconstruct`.
+    pub kind: String,
+    /// Where it is in its lifecycle.
+    pub state: JobState,
+    /// 0 to 1.
+    pub progress: f64,
+    /// Executions started (more than 1 after a retry or a lost worker).
+    pub attempts: i32,
+    /// Why it failed.
+    pub error: Option<String>,
+    /// The tree being reconstructed.
+    pub tree_id: Uuid,
+    /// The scan it reconstructs from.
+    pub scan_id: Uuid,
+    /// The model it produced.
+    pub model_id: Option<Uuid>,
+    /// RFC 3339.
+    pub created_at: String,
+    /// RFC 3339.
+    pub updated_at: String,
+    /// RFC 3339, start of the last execution.
+    pub started_at: Option<String>,
+    /// RFC 3339, end of the last execution.
+    pub finished_at: Option<String>,
+    /// The job and its tree.
+    pub links: Vec<Link>,
+}
+
+impl Job {
+    /// The document for a stored job; links relative to `base`.
+    pub fn from_row(row: &JobRow, base: &str) -> Self {
+        Self {
+            id: row.id,
+            kind: row.kind.clone(),
+            state: row.state(),
+            progress: row.progress,
+            attempts: row.attempts,
+            error: row.error.clone(),
+            tree_id: row.tree_id,
+            scan_id: row.scan_id,
+            model_id: row.model_id,
+            created_at: rfc3339(row.created_at_ms),
+            updated_at: rfc3339(row.updated_at_ms),
+            started_at: row.started_at_ms.map(rfc3339),
+            finished_at: row.finished_at_ms.map(rfc3339),
+            links: vec![
+                Link::new(
+                    format!("{base}/v1/jobs/{}", row.id),
+                    "self",
+                    "application/json",
+                ),
+                Link::new(
+                    format!("{base}/v1/trees/{}", row.tree_id),
+                    "tree",
+                    "application/json",
+                ),
+            ],
+        }
+    }
+}
+
+/// A GeoJSON point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PointGeometry {
+    /// Always `Point`.
+    #[serde(rename = "type")]
+    pub geometry_type: String,
+    /// `[x, y, z]` in the tree's CRS.
+    pub coordinates: [f64; 3],
+}
+
+/// Properties of a tree feature.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TreeProperties {
+    /// The inventory's own id.
+    pub external_id: Option<String>,
+    /// Species name.
+    pub species: Option<String>,
+    /// CRS of the geometry.
+    pub crs: Option<String>,
+    /// Height in metres.
+    pub height_m: Option<f64>,
+    /// The current model.
+    pub model_id: Option<Uuid>,
+    /// RFC 3339.
+    pub updated_at: String,
+}
+
+/// A tree as a GeoJSON feature at its trunk base.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TreeFeature {
+    /// Always `Feature`.
+    #[serde(rename = "type")]
+    pub feature_type: String,
+    /// Tree id.
+    pub id: Uuid,
+    /// Trunk base; null until the first model.
+    pub geometry: Option<PointGeometry>,
+    /// Tree metadata.
+    pub properties: TreeProperties,
+    /// The tree document.
+    pub links: Vec<Link>,
+}
+
+impl TreeFeature {
+    /// The feature of a stored tree.
+    pub fn from_row(row: &TreeRow, base: &str) -> Self {
+        Self {
+            feature_type: "Feature".into(),
+            id: row.id,
+            geometry: row.location().map(|coordinates| PointGeometry {
+                geometry_type: "Point".into(),
+                coordinates,
+            }),
+            properties: TreeProperties {
+                external_id: row.external_id.clone(),
+                species: row.species.clone(),
+                crs: row.crs.clone(),
+                height_m: row.height_m,
+                model_id: row.model_id,
+                updated_at: rfc3339(row.updated_at_ms),
+            },
+            links: vec![Link::new(
+                format!("{base}/v1/trees/{}", row.id),
+                "self",
+                "application/json",
+            )],
+        }
+    }
+}
+
+/// A page of trees as a GeoJSON FeatureCollection (OGC API Features items).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "camelCase")]
+pub struct TreeCollection {
+    /// Always `FeatureCollection`.
+    #[serde(rename = "type")]
+    pub collection_type: String,
+    /// The trees of this page.
+    pub features: Vec<TreeFeature>,
+    /// Features in this page.
+    pub number_returned: usize,
+    /// RFC 3339 time of the answer.
+    pub time_stamp: String,
+    /// `self`, and `next` when more trees match.
+    pub links: Vec<Link>,
+}
+
+/// Unix milliseconds as RFC 3339.
+pub(super) fn rfc3339(ms: i64) -> String {
+    OffsetDateTime::from_unix_timestamp_nanos(i128::from(ms) * 1_000_000)
+        .ok()
+        .and_then(|t| t.format(&Rfc3339).ok())
+        .unwrap_or_default()
+}
+
+/// Raw bytes in a request or response body (OpenAPI `string`, format `binary`).
+#[derive(Debug, Clone, ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct Binary(pub Vec<u8>);

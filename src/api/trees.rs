@@ -1,0 +1,282 @@
+//! `/v1/trees`: upload a scan, read and delete a tree.
+
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use axum::Router;
+use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
+use axum::extract::{DefaultBodyLimit, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use bytes::Bytes;
+use serde::Deserialize;
+use tower_http::limit::RequestBodyLimitLayer;
+use utoipa::IntoParams;
+use uuid::Uuid;
+
+use super::downloads::not_modified;
+use super::error::Problem;
+use super::extract::{ApiPath, ApiQuery};
+use super::schema::{Binary, Job, Tree};
+use super::{ApiError, AppState, BaseUrl, Config, ReadAccess, WriteAccess};
+use crate::jobs::JobOptions;
+use crate::reconstruct::Mode;
+use crate::store::{JobRow, NewIngest};
+
+pub(super) fn routes(config: &Config) -> Router<Arc<AppState>> {
+    Router::new()
+        .route(
+            "/v1/trees",
+            post(create_tree)
+                // Content-Length over the limit is refused before reading;
+                // a chunked body is cut off while reading.
+                .layer::<_, Infallible>(RequestBodyLimitLayer::new(config.max_body_bytes))
+                .layer(DefaultBodyLimit::max(config.max_body_bytes))
+                .get(super::features::list_trees),
+        )
+        .route("/v1/trees/{id}", get(get_tree).delete(delete_tree))
+}
+
+/// Metadata of an upload.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct IngestQuery {
+    /// Species name, e.g. `Quercus robur`.
+    species: Option<String>,
+    /// The inventory's own id; uploading again with the same id adds a scan
+    /// to that tree (a rescan) and replaces its model.
+    external_id: Option<String>,
+    /// Acquisition date, `YYYY-MM-DD`.
+    acquired: Option<String>,
+    /// Where the scan comes from, e.g. `TLS` or `AHN4`.
+    source: Option<String>,
+    /// CRS of the coordinates, e.g. `EPSG:28992`.
+    crs: Option<String>,
+    /// Reconstruction pipeline: `auto` (default: chosen from point density
+    /// and trunk coverage), `dense` (terrestrial/mobile) or `airborne`.
+    #[param(value_type = Option<String>)]
+    mode: Option<Mode>,
+    /// Answer only when the tree is reconstructed (201 with the tree) or
+    /// the time limit is near (202 with the job).
+    #[serde(default)]
+    wait: bool,
+}
+
+/// Upload a point cloud of one tree.
+///
+/// The body is the cloud in any supported format (XYZ text, PLY, LAS, LAZ;
+/// detected from content). It is validated, stored LAZ-compressed together
+/// with a reconstruction job in one transaction, and only then answered.
+#[utoipa::path(
+    post,
+    path = "/v1/trees",
+    tag = "trees",
+    params(IngestQuery),
+    request_body(
+        content = Binary,
+        description = "Point cloud bytes: XYZ, PLY, LAS or LAZ",
+        content_type = "application/octet-stream"
+    ),
+    responses(
+        (status = 202, description = "Stored and queued; `Location` names the job", body = Job,
+            headers(("Location" = String, description = "The job"))),
+        (status = 201, description = "With `wait=true`: reconstructed", body = Tree,
+            headers(("Location" = String, description = "The tree"))),
+        (status = 400, description = "Bad query", body = Problem, content_type = "application/problem+json"),
+        (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "Not a readable point cloud, or (with `wait=true`) no tree could be reconstructed from it",
+            body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("api_key" = []))
+)]
+pub(super) async fn create_tree(
+    State(state): State<Arc<AppState>>,
+    _: WriteAccess,
+    BaseUrl(base): BaseUrl,
+    ApiQuery(query): ApiQuery<IngestQuery>,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let body = body.map_err(|rejection| match rejection {
+        BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
+            ApiError::PayloadTooLarge {
+                limit: state.config.max_body_bytes,
+            }
+        }
+        other => ApiError::BadRequest(other.body_text()),
+    })?;
+    if let Some(date) = &query.acquired {
+        let format = time::macros::format_description!("[year]-[month]-[day]");
+        time::Date::parse(date, &format).map_err(|_| {
+            ApiError::BadRequest(format!("acquired: expected YYYY-MM-DD, found {date:?}"))
+        })?;
+    }
+    let options = JobOptions {
+        mode: query.mode.unwrap_or_default(),
+        crs: query.crs.clone(),
+    };
+    let decoded = {
+        let _slot = state
+            .decode_slots
+            .acquire()
+            .await
+            .map_err(|e| ApiError::Internal(e.to_string()))?;
+        let max_points = state.config.max_points;
+        tokio::task::spawn_blocking(move || crate::jobs::prepare_scan(&body, max_points)).await??
+    };
+    let ingested = state
+        .store
+        .ingest(&NewIngest {
+            external_id: query.external_id,
+            species: query.species,
+            crs: query.crs,
+            acquired: query.acquired,
+            source: query.source,
+            format: decoded.format,
+            point_count: decoded.point_count,
+            cloud_laz: decoded.cloud_laz,
+            options: serde_json::to_string(&options)
+                .map_err(|e| ApiError::Internal(e.to_string()))?,
+        })
+        .await?;
+    state.events.notify_enqueued();
+    tracing::info!(tree = %ingested.tree_id, job = %ingested.job_id, points = decoded.point_count, "scan stored");
+
+    if query.wait {
+        let budget = state.config.request_timeout().mul_f32(0.8);
+        let job = wait_for_job(&state, ingested.job_id, budget).await?;
+        if job.state().is_terminal() {
+            return finished_upload(&state, &base, &job).await;
+        }
+    }
+    let job = state
+        .store
+        .job(ingested.job_id)
+        .await?
+        .ok_or_else(|| ApiError::Conflict("the job was deleted with its tree".into()))?;
+    Ok(with_location(
+        StatusCode::ACCEPTED,
+        format!("{base}/v1/jobs/{}", job.id),
+        axum::Json(Job::from_row(&job, &base)),
+    ))
+}
+
+/// Answer for a `wait=true` upload whose job ended.
+async fn finished_upload(state: &AppState, base: &str, job: &JobRow) -> Result<Response, ApiError> {
+    if job.state() != crate::store::JobState::Succeeded {
+        return Err(ApiError::Unprocessable(format!(
+            "no tree could be reconstructed (job {}): {}",
+            job.id,
+            job.error.as_deref().unwrap_or("unknown error")
+        )));
+    }
+    let tree = state
+        .store
+        .tree(job.tree_id)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(format!("tree {} was deleted", job.tree_id)))?;
+    Ok(with_location(
+        StatusCode::CREATED,
+        format!("{base}/v1/trees/{}", tree.id),
+        axum::Json(Tree::from_row(&tree, base)),
+    ))
+}
+
+/// Polls a job until it ends or `budget` runs out, woken early whenever a
+/// job of this process finishes (other processes' jobs are seen by polling).
+pub(super) async fn wait_for_job(
+    state: &AppState,
+    job_id: Uuid,
+    budget: Duration,
+) -> Result<JobRow, ApiError> {
+    let deadline = Instant::now() + budget;
+    let mut finished = state.events.finished();
+    loop {
+        finished.borrow_and_update();
+        let job = state
+            .store
+            .job(job_id)
+            .await?
+            .ok_or_else(|| ApiError::NotFound(format!("no job {job_id}")))?;
+        let left = deadline.saturating_duration_since(Instant::now());
+        if job.state().is_terminal() || left.is_zero() {
+            return Ok(job);
+        }
+        tokio::select! {
+            _ = finished.changed() => {}
+            () = tokio::time::sleep(left.min(Duration::from_millis(250))) => {}
+        }
+    }
+}
+
+fn with_location(status: StatusCode, location: String, body: impl IntoResponse) -> Response {
+    let mut res = (status, body).into_response();
+    if let Ok(value) = HeaderValue::from_str(&location) {
+        res.headers_mut().insert(header::LOCATION, value);
+    }
+    res
+}
+
+/// One tree: metadata, location, metrics and links to its downloads.
+#[utoipa::path(
+    get,
+    path = "/v1/trees/{id}",
+    tag = "trees",
+    params(("id" = Uuid, Path, description = "Tree id")),
+    responses(
+        (status = 200, description = "The tree", body = Tree,
+            headers(("ETag" = String, description = "Changes whenever the tree does"))),
+        (status = 304, description = "Unchanged since the `If-None-Match` tag"),
+        (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
+    )
+)]
+pub(super) async fn get_tree(
+    State(state): State<Arc<AppState>>,
+    _: ReadAccess,
+    BaseUrl(base): BaseUrl,
+    ApiPath(id): ApiPath<Uuid>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let row = state
+        .store
+        .tree(id)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(format!("no tree {id}")))?;
+    let etag = HeaderValue::from_str(&format!("\"{}-{}\"", row.id.simple(), row.version))
+        .map_err(|e| ApiError::Internal(e.to_string()))?;
+    if not_modified(&headers, &etag) {
+        return Ok((StatusCode::NOT_MODIFIED, [(header::ETAG, etag)]).into_response());
+    }
+    Ok((
+        [(header::ETAG, etag)],
+        axum::Json(Tree::from_row(&row, &base)),
+    )
+        .into_response())
+}
+
+/// Delete a tree with all its scans, models and jobs.
+#[utoipa::path(
+    delete,
+    path = "/v1/trees/{id}",
+    tag = "trees",
+    params(("id" = Uuid, Path, description = "Tree id")),
+    responses(
+        (status = 204, description = "Deleted"),
+        (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
+        (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
+    ),
+    security(("api_key" = []))
+)]
+pub(super) async fn delete_tree(
+    State(state): State<Arc<AppState>>,
+    _: WriteAccess,
+    ApiPath(id): ApiPath<Uuid>,
+) -> Result<StatusCode, ApiError> {
+    if state.store.delete_tree(id).await? {
+        Ok(StatusCode::NO_CONTENT)
+    } else {
+        Err(ApiError::NotFound(format!("no tree {id}")))
+    }
+}

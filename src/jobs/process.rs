@@ -1,0 +1,142 @@
+//! The processing step of the service: bytes in, stored forms out.
+//!
+//! [`prepare_scan`] runs at upload time (so a broken file is refused with a
+//! 422 before anything is stored) and keeps the cloud LAZ-compressed;
+//! [`process`] runs in a job and turns that LAZ into everything the store
+//! keeps for a model. Both are synchronous and CPU-bound: callers run them
+//! off the async runtime.
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use super::Progress;
+use crate::cloud::{self, CloudError, ReadOptions};
+use crate::encode::chaincode::{self, ChainError, ChainOptions};
+use crate::encode::lsystem::{self, LsOptions};
+use crate::reconstruct::{self, Mode, ReconstructError};
+use crate::skeleton::NodeId;
+use crate::store::NewModel;
+
+/// Options of a reconstruction job, stored with the job as JSON.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct JobOptions {
+    /// Pipeline to run.
+    #[serde(default)]
+    pub mode: Mode,
+    /// CRS of the cloud, recorded on the skeleton's anchor.
+    #[serde(default)]
+    pub crs: Option<String>,
+}
+
+/// Why a job failed.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// The stored scan could not be read back.
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+    /// No tree could be reconstructed from the cloud.
+    #[error(transparent)]
+    Reconstruct(#[from] ReconstructError),
+    /// The skeleton could not be chain-coded.
+    #[error("chain code: {0}")]
+    ChainCode(#[from] ChainError),
+    /// The job's options could not be parsed.
+    #[error("job options: {0}")]
+    Options(String),
+    /// The scan row is gone (its tree was deleted).
+    #[error("the scan of this job no longer exists")]
+    ScanMissing,
+    /// The database failed.
+    #[error("{0}")]
+    Store(String),
+    /// Another worker took the job over (this one was presumed dead).
+    #[error("the job's lease was lost to another worker")]
+    LeaseLost,
+    /// The processing step panicked; a bug, reported rather than hidden.
+    #[error("processing panicked: {0}")]
+    Panicked(String),
+}
+
+/// An upload, validated and ready to store.
+#[derive(Debug, Clone)]
+pub struct PreparedScan {
+    /// Detected format of the upload, lowercase (`laz`, `xyz`, …).
+    pub format: String,
+    /// Points read.
+    pub point_count: i64,
+    /// The cloud as LAZ.
+    pub cloud_laz: Vec<u8>,
+}
+
+/// Reads an upload in any supported format (at most `max_points` points)
+/// and compresses it to LAZ for storage.
+pub fn prepare_scan(bytes: &[u8], max_points: usize) -> Result<PreparedScan, CloudError> {
+    let (cloud, format) = cloud::read_bytes(bytes, &ReadOptions { max_points })?;
+    if cloud.is_empty() {
+        return Err(CloudError::Empty(format));
+    }
+    Ok(PreparedScan {
+        format: format.to_string().to_ascii_lowercase(),
+        point_count: i64::try_from(cloud.len()).unwrap_or(i64::MAX),
+        cloud_laz: cloud::to_laz_bytes(&cloud)?,
+    })
+}
+
+/// Reconstructs the tree in a stored scan and encodes it: the skeleton JSON,
+/// LsJSON and compressed chain code, with their parameters and error bounds,
+/// the tree metrics and the trunk base location.
+pub fn process(
+    cloud_laz: &[u8],
+    options: &JobOptions,
+    max_points: usize,
+    progress: &Progress,
+) -> Result<NewModel, JobError> {
+    let (cloud, _) = cloud::read_bytes(cloud_laz, &ReadOptions { max_points })?;
+    progress.set(0.1);
+    let reconstruct_options = reconstruct::Options {
+        mode: options.mode,
+        ..reconstruct::Options::default()
+    };
+    let tree = reconstruct::reconstruct(&cloud, &reconstruct_options)?;
+    progress.set(0.8);
+    let mut skeleton = tree.skeleton;
+    if options.crs.is_some() {
+        let mut anchor = skeleton.anchor().clone();
+        anchor.crs.clone_from(&options.crs);
+        skeleton.set_anchor(anchor);
+    }
+    let ls_options = LsOptions::default();
+    let lsjson = lsystem::encode(&skeleton, &ls_options);
+    progress.set(0.9);
+    let chain_options = ChainOptions::default();
+    let chain = chaincode::encode(&skeleton, &chain_options)?;
+    let parameters = serde_json::json!({
+        "mode": tree.mode.name(),
+        "mode_reason": tree.mode_reason,
+        "notes": tree.notes,
+        "lsystem": {
+            "tolerance_m": ls_options.tolerance_m,
+            "radius_tolerance_m": ls_options.radius_tolerance_m,
+            "error": lsjson.error(),
+        },
+        "chaincode": {
+            "voxel_size_m": chain.header().voxel_size_m,
+            "resolution": chain.header().resolution,
+            "radius_step_m": chain.header().radius_step_m,
+            "error_bound_m": chain.error_bound_m(),
+        },
+    });
+    let location: DVec3 = skeleton.absolute_position(NodeId::ROOT);
+    Ok(NewModel {
+        lsystem: lsjson.to_json(),
+        chaincode: chain.compress(),
+        skeleton: skeleton.to_json(),
+        parameters: parameters.to_string(),
+        metrics: serde_json::to_string(&tree.metrics)
+            .map_err(|e| JobError::Store(e.to_string()))?,
+        internodes: i64::try_from(skeleton.internode_count()).unwrap_or(i64::MAX),
+        location: location.to_array(),
+        crs: skeleton.anchor().crs.clone(),
+        height_m: f64::from(tree.metrics.height_m),
+    })
+}

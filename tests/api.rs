@@ -1,0 +1,741 @@
+//! The REST service end to end, in process, over real HTTP, on SQLite and
+//! on PostgreSQL (see tests/common for the database set-up and the SKIP
+//! rule).
+
+mod common;
+
+use std::time::Duration;
+
+use common::{TestServer, assert_problem, config, on_both, synthetic_scan};
+use glam::DVec3;
+use serde_json::Value;
+use silva::Skeleton;
+use silva::encode::chaincode::{self, ChainCode};
+
+const ORIGIN: DVec3 = DVec3::new(155_000.0, 463_000.0, 1.0);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ingest_poll_and_download() {
+    let scan = synthetic_scan(ORIGIN, 7);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let res = srv
+                .upload("species=Betula%20pendula&external_id=NL-1&acquired=2024-05-01&source=TLS&crs=EPSG:28992", &scan)
+                .await;
+            assert_eq!(res.status(), 202);
+            let location = res.headers()["location"].to_str().unwrap().to_owned();
+            let job: Value = res.json().await.unwrap();
+            assert!(location.ends_with(&format!("/v1/jobs/{}", job["id"].as_str().unwrap())));
+            assert!(["queued", "running", "succeeded"].contains(&job["state"].as_str().unwrap()));
+            let done = srv.wait_job(job["id"].as_str().unwrap()).await;
+            assert_eq!(done["state"], "succeeded", "{done}");
+            assert_eq!(done["attempts"], 1);
+            assert_eq!(done["progress"], 1.0);
+            let id = done["tree_id"].as_str().unwrap();
+
+            let tree: Value = srv.get(&format!("/v1/trees/{id}")).await.json().await.unwrap();
+            assert_eq!(tree["species"], "Betula pendula");
+            assert_eq!(tree["external_id"], "NL-1");
+            assert_eq!(tree["crs"], "EPSG:28992");
+            let location = tree["location"].as_array().unwrap();
+            assert!((location[0].as_f64().unwrap() - ORIGIN.x).abs() < 2.0, "{tree}");
+            assert!((location[1].as_f64().unwrap() - ORIGIN.y).abs() < 2.0, "{tree}");
+            assert!(tree["height_m"].as_f64().unwrap() > 1.0);
+            assert!(tree["metrics"]["height_m"].is_number());
+
+            // The skeleton round-trips through the domain type, georeferenced.
+            let res = srv.get(&format!("/v1/trees/{id}/skeleton")).await;
+            assert_eq!(res.headers()["content-type"], "application/json");
+            let skeleton = Skeleton::from_json(&res.text().await.unwrap()).unwrap();
+            assert!(skeleton.internode_count() > 10);
+            assert_eq!(skeleton.anchor().crs.as_deref(), Some("EPSG:28992"));
+
+            // LsJSON parses with the reader's default limits.
+            let res = srv.get(&format!("/v1/trees/{id}/lsystem")).await;
+            assert_eq!(res.status(), 200);
+            let text = res.text().await.unwrap();
+            silva::encode::lsystem::LsJson::parse(&text, &Default::default()).unwrap();
+
+            // The chain code decompresses and decodes to a skeleton of the
+            // same size.
+            let res = srv.get(&format!("/v1/trees/{id}/chaincode")).await;
+            assert_eq!(res.headers()["content-type"], "application/octet-stream");
+            let bytes = res.bytes().await.unwrap();
+            let code = ChainCode::decompress(&bytes, &chaincode::Limits::default()).unwrap();
+            let decoded = chaincode::decode(&code).unwrap();
+            assert_eq!(decoded.internode_count(), skeleton.internode_count());
+
+            // Meshes: GLB (default), OBJ and PLY at every LOD.
+            let res = srv.get(&format!("/v1/trees/{id}/mesh")).await;
+            assert_eq!(res.status(), 200);
+            assert_eq!(res.headers()["content-type"], "model/gltf-binary");
+            let glb = res.bytes().await.unwrap();
+            assert_eq!(&glb[..4], b"glTF");
+            for lod in 0..=3 {
+                let res = srv.get(&format!("/v1/trees/{id}/mesh?format=glb&lod={lod}")).await;
+                assert_eq!(res.status(), 200);
+            }
+            let res = srv.get(&format!("/v1/trees/{id}/mesh?format=obj&lod=0")).await;
+            assert_eq!(res.headers()["content-type"], "model/obj");
+            assert!(res.text().await.unwrap().contains("\nf "));
+            let res = srv.get(&format!("/v1/trees/{id}/mesh?format=ply&lod=2")).await;
+            assert_eq!(res.headers()["content-type"], "application/ply");
+            assert!(res.bytes().await.unwrap().starts_with(b"ply"));
+            assert_problem(srv.get(&format!("/v1/trees/{id}/mesh?format=stl")).await, 400).await;
+            assert_problem(srv.get(&format!("/v1/trees/{id}/mesh?lod=4")).await, 400).await;
+
+            // CityJSON, valid for cjval, georeferenced, with the species.
+            let res = srv.get(&format!("/v1/trees/{id}/cityjson?lod=1")).await;
+            assert_eq!(res.headers()["content-type"], "application/city+json");
+            let text = res.text().await.unwrap();
+            assert_valid_cityjson(&text);
+            let doc: Value = serde_json::from_str(&text).unwrap();
+            let object = &doc["CityObjects"][id];
+            assert_eq!(object["type"], "SolitaryVegetationObject");
+            assert_eq!(object["attributes"]["species"], "Betula pendula");
+            assert_eq!(doc["metadata"]["referenceSystem"], "https://www.opengis.net/def/crs/EPSG/0/28992");
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wait_answers_201_with_the_tree() {
+    let scan = synthetic_scan(ORIGIN, 8);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let res = srv.upload("wait=true&species=Betula", &scan).await;
+            assert_eq!(res.status(), 201);
+            let location = res.headers()["location"].to_str().unwrap().to_owned();
+            let tree: Value = res.json().await.unwrap();
+            let id = tree["id"].as_str().unwrap();
+            assert!(location.ends_with(&format!("/v1/trees/{id}")));
+            assert!(tree["model_id"].is_string());
+            assert!(tree["links"].as_array().unwrap().len() > 2);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn write_routes_need_a_key() {
+    let scan = synthetic_scan(ORIGIN, 9);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let mut cfg = config(&url);
+            cfg.api_keys = vec!["s3cret".into(), "other".into()];
+            let srv = TestServer::start(cfg).await;
+            let res = srv.upload("", &scan).await;
+            let problem = assert_problem(res, 401).await;
+            assert_eq!(problem["instance"], "/v1/trees");
+            let res = srv
+                .http
+                .post(srv.url("/v1/trees"))
+                .bearer_auth("wrong")
+                .body(scan.clone())
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.headers()["www-authenticate"], "Bearer realm=\"silva\"");
+            assert_problem(res, 401).await;
+            let res = srv
+                .http
+                .post(srv.url("/v1/trees"))
+                .bearer_auth("s3cret")
+                .body(scan.clone())
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 202);
+            let job: Value = res.json().await.unwrap();
+            // Reads stay open.
+            assert_eq!(srv.get("/v1/trees").await.status(), 200);
+            let id = job["tree_id"].as_str().unwrap();
+            let res = srv
+                .http
+                .delete(srv.url(&format!("/v1/trees/{id}")))
+                .send()
+                .await
+                .unwrap();
+            assert_problem(res, 401).await;
+            let res = srv
+                .http
+                .delete(srv.url(&format!("/v1/trees/{id}")))
+                .bearer_auth("other")
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 204);
+            srv.stop().await;
+
+            let mut cfg = config(&url);
+            cfg.api_keys = vec!["s3cret".into()];
+            cfg.read_requires_key = true;
+            let srv = TestServer::start(cfg).await;
+            assert_problem(srv.get("/v1/trees").await, 401).await;
+            let res = srv
+                .http
+                .get(srv.url("/v1/trees"))
+                .bearer_auth("s3cret")
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 200);
+            // Probes stay open for orchestrators.
+            assert_eq!(srv.get("/healthz").await.status(), 200);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_input_is_a_4xx_problem() {
+    on_both(|url| async move {
+        let mut cfg = config(&url);
+        cfg.max_body_bytes = 64 * 1024;
+        let srv = TestServer::start(cfg).await;
+
+        let problem = assert_problem(srv.upload("", b"this is not a point cloud").await, 422).await;
+        assert!(
+            problem["detail"].as_str().unwrap().contains("XYZ"),
+            "{problem}"
+        );
+        assert_problem(srv.upload("", b"").await, 422).await;
+        // LAS magic with a truncated header.
+        assert_problem(srv.upload("", b"LASF\x00\x00\x00\x00").await, 422).await;
+        assert_problem(srv.upload("acquired=yesterday", b"0 0 0\n").await, 400).await;
+        assert_problem(srv.upload("mode=sideways", b"0 0 0\n").await, 400).await;
+
+        // Over the body limit: refused from Content-Length, nothing stored.
+        let huge = vec![b'1'; 200 * 1024];
+        assert_problem(srv.upload("", &huge).await, 413).await;
+        // Chunked (no Content-Length): cut off while reading.
+        assert_eq!(chunked_upload_status(&srv, 50, 4096).await, 413);
+        assert_eq!(chunked_upload_status(&srv, 1, 12).await, 422);
+
+        assert_problem(srv.get("/v1/trees?bbox=1,2,3").await, 400).await;
+        assert_problem(srv.get("/v1/trees?limit=0").await, 400).await;
+        assert_problem(srv.get("/v1/trees?min_height=abc").await, 400).await;
+        assert_problem(srv.get("/v1/trees/not-a-uuid").await, 400).await;
+        let missing = uuid::Uuid::now_v7();
+        assert_problem(srv.get(&format!("/v1/trees/{missing}")).await, 404).await;
+        assert_problem(srv.get(&format!("/v1/trees/{missing}/skeleton")).await, 404).await;
+        assert_problem(srv.get(&format!("/v1/jobs/{missing}")).await, 404).await;
+        assert_problem(srv.get("/v2/nothing").await, 404).await;
+        let res = srv.http.put(srv.url("/v1/trees")).send().await.unwrap();
+        assert_problem(res, 405).await;
+        let listed: Value = srv.get("/v1/trees").await.json().await.unwrap();
+        assert_eq!(
+            listed["numberReturned"], 0,
+            "a refused upload stored nothing"
+        );
+        srv.stop().await;
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn etags_revalidate_and_json_is_compressed() {
+    let scan = synthetic_scan(ORIGIN, 10);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let id = srv.ingest("", &scan).await;
+            // Binary meshes: strong tags, never compressed.
+            let path = format!("/v1/trees/{id}/mesh?format=glb&lod=1");
+            let res = srv
+                .http
+                .get(srv.url(&path))
+                .header("accept-encoding", "gzip, br")
+                .send()
+                .await
+                .unwrap();
+            assert!(res.headers().get("content-encoding").is_none());
+            let etag = res.headers()["etag"].to_str().unwrap().to_owned();
+            assert!(etag.starts_with('"'));
+            let res = srv
+                .http
+                .get(srv.url(&path))
+                .header("if-none-match", &etag)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 304);
+            for path in ["skeleton", "lsystem", "cityjson?lod=0"] {
+                let path = format!("/v1/trees/{id}/{path}");
+                let res = srv.get(&path).await;
+                assert_eq!(res.status(), 200);
+                let etag = res.headers()["etag"].to_str().unwrap().to_owned();
+                assert!(etag.starts_with('"'), "strong ETag: {etag}");
+                let body = res.bytes().await.unwrap();
+                let res = srv
+                    .http
+                    .get(srv.url(&path))
+                    .header("if-none-match", &etag)
+                    .send()
+                    .await
+                    .unwrap();
+                assert_eq!(res.status(), 304);
+                assert_eq!(res.headers()["etag"], etag.as_str());
+                assert!(res.bytes().await.unwrap().is_empty());
+                let res = srv
+                    .http
+                    .get(srv.url(&path))
+                    .header("if-none-match", "\"other\"")
+                    .send()
+                    .await
+                    .unwrap();
+                assert_eq!(res.status(), 200);
+                assert_eq!(res.bytes().await.unwrap(), body);
+
+                // Compressed on request; the tag turns weak and still revalidates.
+                let res = srv
+                    .http
+                    .get(srv.url(&path))
+                    .header("accept-encoding", "gzip")
+                    .send()
+                    .await
+                    .unwrap();
+                assert_eq!(res.headers()["content-encoding"], "gzip");
+                let weak = res.headers()["etag"].to_str().unwrap().to_owned();
+                assert_eq!(weak, format!("W/{etag}"));
+                let res = srv
+                    .http
+                    .get(srv.url(&path))
+                    .header("accept-encoding", "br")
+                    .header("if-none-match", &weak)
+                    .send()
+                    .await
+                    .unwrap();
+                assert_eq!(res.status(), 304);
+            }
+            // The tree document has a version tag.
+            let res = srv.get(&format!("/v1/trees/{id}")).await;
+            let etag = res.headers()["etag"].to_str().unwrap().to_owned();
+            let res = srv
+                .http
+                .get(srv.url(&format!("/v1/trees/{id}")))
+                .header("if-none-match", &etag)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 304);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bbox_filters_and_cursor_pagination() {
+    // Five trees 100 m apart along x, two species.
+    let scans: Vec<Vec<u8>> = (0..5u32)
+        .map(|i| {
+            synthetic_scan(
+                ORIGIN + DVec3::new(100.0 * f64::from(i), 0.0, 0.0),
+                20 + u64::from(i),
+            )
+        })
+        .collect();
+    on_both(|url| {
+        let scans = scans.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let mut ids = Vec::new();
+            for (i, scan) in scans.iter().enumerate() {
+                let species = if i % 2 == 0 { "Betula" } else { "Quercus" };
+                ids.push(srv.ingest(&format!("species={species}"), scan).await);
+            }
+            let (x, y) = (ORIGIN.x, ORIGIN.y);
+            // A bbox around the 2nd and 3rd tree.
+            let bbox = format!("{},{},{},{}", x + 50.0, y - 10.0, x + 250.0, y + 10.0);
+            let page: Value = srv
+                .get(&format!("/v1/trees?bbox={bbox}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            let found: Vec<&str> = page["features"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|f| f["id"].as_str().unwrap())
+                .collect();
+            assert_eq!(found, vec![ids[1].as_str(), ids[2].as_str()]);
+            let feature = &page["features"][0];
+            assert_eq!(feature["type"], "Feature");
+            assert_eq!(feature["geometry"]["type"], "Point");
+            assert_eq!(page["type"], "FeatureCollection");
+
+            let res = srv.get("/v1/trees?species=Quercus").await;
+            assert_eq!(res.headers()["content-type"], "application/geo+json");
+            let page: Value = res.json().await.unwrap();
+            assert_eq!(page["numberReturned"], 2);
+            let page: Value = srv
+                .get("/v1/trees?min_height=1000")
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(page["numberReturned"], 0);
+            let page: Value = srv
+                .get("/v1/trees?min_height=0.5&max_height=1000")
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(page["numberReturned"], 5);
+
+            // Pages of two, following `next` links, in both listings.
+            for start in ["/v1/trees?limit=2", "/v1/collections/trees/items?limit=2"] {
+                let mut seen = Vec::new();
+                let mut next = Some(srv.url(start));
+                let mut pages = 0;
+                while let Some(url) = next {
+                    let page: Value = srv
+                        .http
+                        .get(url)
+                        .send()
+                        .await
+                        .unwrap()
+                        .json()
+                        .await
+                        .unwrap();
+                    pages += 1;
+                    for f in page["features"].as_array().unwrap() {
+                        seen.push(f["id"].as_str().unwrap().to_owned());
+                    }
+                    next = page["links"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .find(|l| l["rel"] == "next")
+                        .map(|l| l["href"].as_str().unwrap().to_owned());
+                    assert!(pages <= 4, "pagination does not end");
+                }
+                assert_eq!(seen, ids, "every tree once, in order ({start})");
+            }
+            // OGC items with a bbox and a next link that keeps it.
+            let page: Value = srv
+                .get(&format!("/v1/collections/trees/items?limit=1&bbox={bbox}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(page["features"][0]["id"], ids[1].as_str());
+            let next = page["links"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|l| l["rel"] == "next")
+                .unwrap();
+            let page: Value = srv
+                .http
+                .get(next["href"].as_str().unwrap())
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(page["features"][0]["id"], ids[2].as_str());
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn failed_job_keeps_its_error_and_can_be_retried() {
+    on_both(|url| async move {
+        let srv = TestServer::start(config(&url)).await;
+        // Readable, but far too few points for a tree.
+        let res = srv.upload("", b"0 0 0\n0 0 1\n0 0 2\n").await;
+        assert_eq!(res.status(), 202);
+        let job: Value = res.json().await.unwrap();
+        let job_id = job["id"].as_str().unwrap().to_owned();
+        let failed = srv.wait_job(&job_id).await;
+        assert_eq!(failed["state"], "failed");
+        assert!(
+            failed["error"].as_str().unwrap().contains("too few points"),
+            "{failed}"
+        );
+        let tree_id = failed["tree_id"].as_str().unwrap();
+        assert_problem(srv.get(&format!("/v1/trees/{tree_id}/skeleton")).await, 409).await;
+
+        let res = srv
+            .http
+            .post(srv.url(&format!("/v1/jobs/{job_id}/retry")))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(res.status(), 200);
+        let again = srv.wait_job(&job_id).await;
+        assert_eq!(again["state"], "failed");
+        assert_eq!(again["attempts"], 2);
+
+        // wait=true on a cloud without a tree: 422 naming the job.
+        let problem = assert_problem(srv.upload("wait=true", b"0 0 0\n1 1 1\n").await, 422).await;
+        assert!(
+            problem["detail"].as_str().unwrap().contains("job"),
+            "{problem}"
+        );
+
+        // A succeeded job cannot be retried.
+        let scan = synthetic_scan(ORIGIN, 11);
+        let res = srv.upload("", &scan).await;
+        let job: Value = res.json().await.unwrap();
+        let ok = srv.wait_job(job["id"].as_str().unwrap()).await;
+        assert_eq!(ok["state"], "succeeded");
+        let res = srv
+            .http
+            .post(srv.url(&format!("/v1/jobs/{}/retry", ok["id"].as_str().unwrap())))
+            .send()
+            .await
+            .unwrap();
+        assert_problem(res, 409).await;
+        srv.stop().await;
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_queued_job_survives_a_restart() {
+    let scan = synthetic_scan(ORIGIN, 12);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            // A pure API node: accepts the upload, runs nothing.
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            let srv = TestServer::start(cfg).await;
+            let res = srv.upload("", &scan).await;
+            assert_eq!(res.status(), 202);
+            let job: Value = res.json().await.unwrap();
+            let job_id = job["id"].as_str().unwrap().to_owned();
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            let still: Value = srv
+                .get(&format!("/v1/jobs/{job_id}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(still["state"], "queued");
+            srv.stop().await;
+
+            // The next process on the same database picks it up.
+            let srv = TestServer::start(config(&url)).await;
+            let done = srv.wait_job(&job_id).await;
+            assert_eq!(done["state"], "succeeded", "{done}");
+            assert_eq!(done["attempts"], 1);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn delete_removes_the_tree_and_its_downloads() {
+    let scan = synthetic_scan(ORIGIN, 13);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let id = srv.ingest("", &scan).await;
+            assert_eq!(
+                srv.get(&format!("/v1/trees/{id}/skeleton")).await.status(),
+                200
+            );
+            let res = srv
+                .http
+                .delete(srv.url(&format!("/v1/trees/{id}")))
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 204);
+            assert_problem(srv.get(&format!("/v1/trees/{id}")).await, 404).await;
+            assert_problem(srv.get(&format!("/v1/trees/{id}/skeleton")).await, 404).await;
+            let res = srv
+                .http
+                .delete(srv.url(&format!("/v1/trees/{id}")))
+                .send()
+                .await
+                .unwrap();
+            assert_problem(res, 404).await;
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn probes_metrics_and_docs() {
+    on_both(|url| async move {
+        let srv = TestServer::start(config(&url)).await;
+        assert_eq!(srv.get("/healthz").await.status(), 200);
+        assert_eq!(srv.get("/readyz").await.text().await.unwrap(), "ready\n");
+        let _ = srv.get("/v1/trees").await;
+        let res = srv.get("/metrics").await;
+        assert!(res.headers()["content-type"].to_str().unwrap().starts_with("text/plain"));
+        let text = res.text().await.unwrap();
+        assert!(text.contains("silva_http_request_duration_seconds_bucket{method=\"GET\",route=\"/v1/trees\",status=\"200\""), "{text}");
+        assert!(text.contains("silva_jobs{state=\"queued\"} 0"), "{text}");
+        let spec: Value = srv.get("/openapi.json").await.json().await.unwrap();
+        assert!(spec["paths"]["/v1/trees"]["post"].is_object());
+        let docs = srv.get("/docs/").await;
+        assert_eq!(docs.status(), 200);
+        assert!(docs.text().await.unwrap().contains("swagger"));
+        srv.stop().await;
+    })
+    .await;
+}
+
+/// Sends a chunked upload of `chunks` chunks of `size` digits over a raw
+/// connection (no Content-Length) and returns the status code.
+async fn chunked_upload_status(srv: &TestServer, chunks: usize, size: usize) -> u16 {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let addr = srv.server.local_addr();
+    let mut tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let head = format!(
+        "POST /v1/trees HTTP/1.1\r\nHost: {addr}\r\nTransfer-Encoding: chunked\r\nConnection: close\r\n\r\n"
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    let chunk = format!("{size:x}\r\n{}\r\n", "1".repeat(size));
+    for _ in 0..chunks {
+        // The server may answer and close before taking everything.
+        if tcp.write_all(chunk.as_bytes()).await.is_err() {
+            break;
+        }
+    }
+    let _ = tcp.write_all(b"0\r\n\r\n").await;
+    let mut answer = Vec::new();
+    let _ = tcp.read_to_end(&mut answer).await;
+    let answer = String::from_utf8_lossy(&answer);
+    answer
+        .split_whitespace()
+        .nth(1)
+        .and_then(|code| code.parse().ok())
+        .unwrap_or_else(|| panic!("no HTTP answer: {answer:?}"))
+}
+
+/// Fails unless `text` is a CityJSON document cjval finds valid.
+fn assert_valid_cityjson(text: &str) {
+    let validator = cjval::CJValidator::from_str(text);
+    let report = validator.validate();
+    let errors: Vec<String> = report
+        .iter()
+        .filter(|(_, summary)| summary.has_errors())
+        .map(|(check, summary)| format!("{check}: {:?}", summary.get_errors()))
+        .collect();
+    assert!(errors.is_empty(), "cjval: {errors:?}");
+}
+
+/// Fails unless `text` is a CityJSONSeq cjval accepts: a header, then features.
+fn assert_valid_cityjson_seq(text: &str) -> usize {
+    let mut lines = text.lines();
+    let header = lines.next().expect("a header line");
+    assert_valid_cityjson(header);
+    let mut validator = cjval::CJValidator::from_str(header);
+    let mut features = 0;
+    for line in lines {
+        validator.from_str_cjfeature(line).unwrap();
+        let report = validator.validate();
+        let errors: Vec<String> = report
+            .iter()
+            .filter(|(_, summary)| summary.has_errors())
+            .map(|(check, summary)| format!("{check}: {:?}", summary.get_errors()))
+            .collect();
+        assert!(errors.is_empty(), "cjval feature {features}: {errors:?}");
+        features += 1;
+    }
+    features
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cityjson_seq_streams_the_trees_of_an_area() {
+    let scans: Vec<Vec<u8>> = (0..3u32)
+        .map(|i| {
+            synthetic_scan(
+                ORIGIN + DVec3::new(0.0, 50.0 * f64::from(i), 0.0),
+                40 + u64::from(i),
+            )
+        })
+        .collect();
+    on_both(|url| {
+        let scans = scans.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            for scan in &scans {
+                srv.ingest("species=Betula&crs=EPSG:28992", scan).await;
+            }
+            let (x, y) = (ORIGIN.x, ORIGIN.y);
+            let bbox = format!("{},{},{},{}", x - 10.0, y - 10.0, x + 10.0, y + 60.0);
+            let res = srv.get(&format!("/v1/cityjson?bbox={bbox}&lod=0")).await;
+            assert_eq!(res.status(), 200);
+            assert_eq!(res.headers()["content-type"], "application/city+json-seq");
+            let text = res.text().await.unwrap();
+            assert_eq!(assert_valid_cityjson_seq(&text), 2);
+            // An empty area is a header alone.
+            let res = srv.get("/v1/cityjson?bbox=0,0,1,1").await;
+            assert_eq!(assert_valid_cityjson_seq(&res.text().await.unwrap()), 0);
+            assert_problem(srv.get("/v1/cityjson").await, 400).await;
+            assert_problem(
+                srv.get(&format!("/v1/cityjson?bbox={bbox}&lod=9")).await,
+                400,
+            )
+            .await;
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rescan_with_the_same_external_id_replaces_the_model() {
+    let first = synthetic_scan(ORIGIN, 50);
+    let second = synthetic_scan(ORIGIN, 51);
+    on_both(|url| {
+        let (first, second) = (first.clone(), second.clone());
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let id = srv
+                .ingest("external_id=NL-7&acquired=2020-06-01", &first)
+                .await;
+            let before: Value = srv
+                .get(&format!("/v1/trees/{id}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            let again = srv
+                .ingest(
+                    "external_id=NL-7&acquired=2024-06-01&species=Betula",
+                    &second,
+                )
+                .await;
+            assert_eq!(again, id, "the rescan belongs to the same tree");
+            let after: Value = srv
+                .get(&format!("/v1/trees/{id}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_ne!(after["model_id"], before["model_id"]);
+            assert!(after["version"].as_i64() > before["version"].as_i64());
+            assert_eq!(after["species"], "Betula");
+            let page: Value = srv.get("/v1/trees").await.json().await.unwrap();
+            assert_eq!(page["numberReturned"], 1);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
