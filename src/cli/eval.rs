@@ -42,9 +42,17 @@ pub struct Args {
     /// Scanner for the synthetic trees.
     #[arg(long, value_enum, default_value_t = Scan::Tls)]
     scan: Scan,
-    /// Airborne density in points/m² for synthetic ALS scans.
-    #[arg(long, default_value_t = 20.0)]
-    density: f32,
+    /// Scan density in points/m²: of clip area for ALS (default 20), of
+    /// bark surface for TLS (default 150).
+    #[arg(long)]
+    density: Option<f32>,
+    /// Gaussian noise standard deviation in metres (default 0.05 ALS,
+    /// 0.003 TLS).
+    #[arg(long)]
+    noise: Option<f32>,
+    /// TLS: keep points that no scanner could see (a clean, complete scan).
+    #[arg(long)]
+    no_occlusion: bool,
     /// First seed of the synthetic trees (tree i uses seed + i).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -165,11 +173,22 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
     };
     let truth = generate(&TreeParams::preset(species), seed, anchor);
     let cloud = match args.scan {
-        Scan::Tls => simulate_tls(&truth, &TlsOptions::default(), seed),
+        Scan::Tls => {
+            let defaults = TlsOptions::default();
+            let tls = TlsOptions {
+                points_per_m2: args.density.unwrap_or(defaults.points_per_m2),
+                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
+                occlusion: !args.no_occlusion,
+                ..defaults
+            };
+            simulate_tls(&truth, &tls, seed)
+        }
         Scan::Als => {
+            let defaults = AlsOptions::default();
             let als = AlsOptions {
-                density_pts_per_m2: args.density,
-                ..AlsOptions::default()
+                density_pts_per_m2: args.density.unwrap_or(defaults.density_pts_per_m2),
+                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
+                ..defaults
             };
             simulate_als(&truth, &als, seed)
         }

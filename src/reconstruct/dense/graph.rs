@@ -97,6 +97,7 @@ pub(super) fn knn_edges(
 }
 
 /// Disjoint-set forest with path halving and union by size.
+#[derive(Clone)]
 pub(super) struct UnionFind {
     parent: Vec<u32>,
     size: Vec<u32>,

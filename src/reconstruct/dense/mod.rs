@@ -16,10 +16,12 @@
 //! 3. [`skeletonize`]: cross-sections of equal geodesic distance collapse to
 //!    skeleton nodes at branch centres (centroids; on thick one-sided
 //!    sections, the centre of a fitted circle), with the arcs of one stem
-//!    section that ragged distance fronts split joined again;
+//!    section that ragged distance fronts split joined again, and the
+//!    pieces of a thick stem's ring joined through paths in the
+//!    neighbouring bins ([`Params::ring_window_bins`]);
 //! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
-//!    (shorter than a few bins by subtree length, or bark patches that never
-//!    leave their stem), thick stems smoothed, Douglas–Peucker along chains,
+//!    (shorter than a few bins by subtree length, or, when enabled, bark
+//!    patches that never leave their stem), thick stems smoothed, Douglas–Peucker along chains,
 //!    main extension first.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
@@ -65,11 +67,22 @@ pub struct Params {
     /// Join cross-sections of one bin whose extents overlap (arcs of a
     /// thick stem that ragged distance fronts split).
     pub merge_overlapping_arcs: bool,
+    /// A thick stem's cross-section is a thin band around the bark that the
+    /// nearest-neighbour edges inside it leave in pieces; pieces joined by
+    /// edges through this many neighbouring bins are one section when
+    /// together they are a thick stem's ring (0: never join).
+    pub ring_window_bins: u32,
+    /// The RMS spread from its centroid, in metres, above which a joined
+    /// section counts as a thick stem's ring.
+    pub ring_spread_m: f32,
     /// Move thick sections' nodes to the centre of a circle fitted to their
     /// points (one-sided scans see arcs whose centroid is off the axis).
     pub centre_arcs: bool,
     /// Lateral subtrees that stay within this many cross-section spreads of
     /// the stem they leave are bark patches, not branches (0 keeps them).
+    /// Off by default: with [`Params::ring_window_bins`] thick stems come out
+    /// as whole rings, so bark patches no longer arise, and the rule cut
+    /// real branches that hug their stem (poplars).
     pub stem_stub_spreads: f32,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
@@ -100,8 +113,10 @@ impl Default for Params {
             max_edge_spacings: 20.0,
             min_branch_bins: 3.0,
             merge_overlapping_arcs: true,
+            ring_window_bins: 1,
+            ring_spread_m: 0.11,
             centre_arcs: true,
-            stem_stub_spreads: 1.5,
+            stem_stub_spreads: 0.0,
             smoothing_rounds: 3,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
@@ -182,6 +197,8 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             bin_m,
             merge_overlapping_arcs: params.merge_overlapping_arcs,
             centre_arcs: params.centre_arcs,
+            window_bins: params.ring_window_bins,
+            thick_spread_m: params.ring_spread_m,
         },
     );
     drop(g);

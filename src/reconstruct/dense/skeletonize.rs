@@ -32,6 +32,13 @@ pub(super) struct Sectioning {
     pub(super) merge_overlapping_arcs: bool,
     /// Centre thick sections on a fitted circle.
     pub(super) centre_arcs: bool,
+    /// Same-bin points of a thick stem are one section when graph edges join
+    /// them through points at most this many bins away (0: within the bin
+    /// only).
+    pub(super) window_bins: u32,
+    /// A section joined through the window counts as a thick stem's ring
+    /// when its points spread this far from their centroid (RMS, metres).
+    pub(super) thick_spread_m: f32,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -55,12 +62,9 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    for v in 0..n {
-        for &(w, _) in graph.neighbours(v) {
-            if bin[v] == bin[w as usize] {
-                uf.union(v as u32, w);
-            }
-        }
+    join_within_windows(graph, &bin, 0, &mut uf);
+    if opts.window_bins > 0 {
+        join_thick_rings(points, graph, dist, &bin, opts, &mut uf);
     }
     if opts.merge_overlapping_arcs {
         let stats = Stats::gather(points, dist, &mut uf);
@@ -126,6 +130,90 @@ pub(super) fn cross_sections(
     Sections { nodes, counts }
 }
 
+/// Joins the pieces of thick stems' rings (see [`join_within_windows`]).
+/// Only sections that come out thick are joined: among twigs, the window
+/// would delay forks and lose short branches for nothing.
+fn join_thick_rings(
+    points: &[Vec3],
+    graph: &Graph,
+    dist: &[f32],
+    bin: &[u32],
+    opts: &Sectioning,
+    uf: &mut UnionFind,
+) {
+    let mut wide = uf.clone();
+    join_within_windows(graph, bin, opts.window_bins, &mut wide);
+    let stats = Stats::gather(points, dist, &mut wide);
+    let mut first = vec![u32::MAX; points.len()];
+    for i in 0..points.len() as u32 {
+        let r = wide.find(i) as usize;
+        if stats.spread(r) < opts.thick_spread_m {
+            continue;
+        }
+        if first[r] == u32::MAX {
+            first[r] = i;
+        } else {
+            uf.union(first[r], i);
+        }
+    }
+}
+
+/// Joins the points of each bin that graph edges connect through points of
+/// the neighbouring bins, `window` bins either way.
+///
+/// A bin of a thick stem is a thin band around the bark whose circumference
+/// is long compared with the point spacing: the nearest-neighbour edges
+/// inside the band alone leave it in pieces, and each piece would become a
+/// node on the bark. Paths through the bands just above and below close the
+/// ring, while a twig still parts from its stem once no path within the
+/// window joins them: forks are found at most `window` bins late, and the
+/// nodes keep the fine bins' resolution along the branches.
+fn join_within_windows(graph: &Graph, bin: &[u32], window: u32, uf: &mut UnionFind) {
+    let n = bin.len();
+    let mut by_bin: Vec<u32> = (0..n as u32).collect();
+    by_bin.sort_unstable_by_key(|&v| bin[v as usize]);
+    // Start of each bin's run in `by_bin`.
+    let last = bin.iter().copied().max().unwrap_or(0) as usize;
+    let mut start = vec![0usize; last + 2];
+    for &v in &by_bin {
+        start[bin[v as usize] as usize + 1] += 1;
+    }
+    for b in 1..start.len() {
+        start[b] += start[b - 1];
+    }
+    let mut local = vec![u32::MAX; n];
+    for b in 0..=last {
+        let lo = start[b.saturating_sub(window as usize)];
+        let hi = start[(b + window as usize + 1).min(last + 1)];
+        let members = &by_bin[lo..hi];
+        for (k, &v) in members.iter().enumerate() {
+            local[v as usize] = k as u32;
+        }
+        let mut window_uf = UnionFind::new(members.len());
+        for (k, &v) in members.iter().enumerate() {
+            for &(w, _) in graph.neighbours(v as usize) {
+                let lw = local[w as usize];
+                if lw != u32::MAX {
+                    window_uf.union(k as u32, lw);
+                }
+            }
+        }
+        // Points of bin `b` in one window component form one section.
+        let mut first_of = vec![u32::MAX; members.len()];
+        for &v in &by_bin[start[b]..start[b + 1]] {
+            let c = window_uf.find(local[v as usize]) as usize;
+            if first_of[c] == u32::MAX {
+                first_of[c] = v;
+            } else {
+                uf.union(first_of[c], v);
+            }
+        }
+        for &v in members {
+            local[v as usize] = u32::MAX;
+        }
+    }
+}
+
 /// Moves the nodes of thick sections from the centroid to the centre of a
 /// circle fitted (Kåsa) to the section's points across the branch direction.
 /// A scanner sees one side of a thick branch: the centroid of that arc lies
@@ -188,6 +276,13 @@ impl Stats {
             st.count[r] += 1;
         }
         st
+    }
+
+    /// RMS distance of section `r`'s points from their centroid.
+    fn spread(&self, r: usize) -> f32 {
+        let c = f64::from(self.count[r].max(1));
+        let mean = self.sum[r] / c;
+        (self.sum_sq[r] / c - mean.length_squared()).max(0.0).sqrt() as f32
     }
 
     fn centroid(&self, r: usize) -> Vec3 {
@@ -266,11 +361,68 @@ mod tests {
                 bin_m: 0.08,
                 merge_overlapping_arcs: true,
                 centre_arcs: false,
+                window_bins: 0,
+                thick_spread_m: 0.0,
             },
         );
         assert_eq!(s.nodes.len(), 2);
         assert!(s.nodes[1].position.distance(Vec3::new(1.0, 0.0, 0.1)) < 1e-4);
         assert_eq!(s.nodes[1].parent, Some(NodeId::ROOT));
         assert_eq!(s.counts, vec![8, 8]);
+    }
+
+    /// A sparse scan of a 0.4 m-radius stem: with fine bins each band is
+    /// a thin, gappy ring. Joined through the neighbouring bins it gives one
+    /// node per bin on the axis; without the window, pieces of bark do.
+    fn stem_sections(window_bins: u32) -> Sections {
+        use super::super::graph::knn_edges;
+        use crate::spatial::PointIndex;
+        // A low-discrepancy (R2) sequence over the bark: even, not a lattice.
+        let pts: Vec<Vec3> = (0..3000)
+            .map(|k| {
+                let a = (k as f32 * 0.754_877_7).fract() * std::f32::consts::TAU;
+                let z = (k as f32 * 0.569_840_3).fract() * 1.5;
+                Vec3::new(0.4 * a.cos(), 0.4 * a.sin(), z)
+            })
+            .collect();
+        let index = PointIndex::new(&pts);
+        let g = Graph::from_edges(pts.len(), &knn_edges(&pts, &index, 6, 1.0));
+        let sources: Vec<u32> = (0..pts.len() as u32)
+            .filter(|&i| pts[i as usize].z < 0.03)
+            .collect();
+        let (dist, pred) = shortest_path_tree(&g, &sources);
+        cross_sections(
+            &pts,
+            &g,
+            &dist,
+            &pred,
+            Vec3::ZERO,
+            &Sectioning {
+                bin_m: 0.03,
+                merge_overlapping_arcs: false,
+                centre_arcs: false,
+                window_bins,
+                thick_spread_m: 0.11,
+            },
+        )
+    }
+
+    #[test]
+    fn a_thick_stem_gives_one_node_per_band_on_its_axis() {
+        let off_axis = |s: &Sections| {
+            s.nodes
+                .iter()
+                .filter(|n| n.position.truncate().length() > 0.1)
+                .count()
+        };
+        let pieces = stem_sections(0);
+        assert!(
+            off_axis(&pieces) > 20,
+            "expected bark pieces without the window"
+        );
+        let rings = stem_sections(1);
+        // The topmost, partial band may leave a piece.
+        assert!(off_axis(&rings) <= 2, "{} off-axis nodes", off_axis(&rings));
+        assert!(rings.nodes.len() <= 60, "{} nodes", rings.nodes.len());
     }
 }
