@@ -315,6 +315,22 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| r.fit.map(|f| pct(f.supported_share)),
         },
         Column {
+            header: "mesh_2cm%",
+            cell: |r| r.mesh_fit.map(|f| pct(f.within_2cm)),
+        },
+        Column {
+            header: "mesh_5cm%",
+            cell: |r| r.mesh_fit.map(|f| pct(f.within_5cm)),
+        },
+        Column {
+            header: "mesh_mean",
+            cell: |r| r.mesh_fit.map(|f| format!("{:.3}", f.mean_distance_m)),
+        },
+        Column {
+            header: "mesh_supp%",
+            cell: |r| r.mesh_fit.map(|f| pct(f.supported_share)),
+        },
+        Column {
             header: "ls_KB",
             cell: |r| {
                 r.encoding

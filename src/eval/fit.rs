@@ -20,9 +20,13 @@ use crate::spatial::PointIndex;
 /// Spacing of the axis samples used to find candidate cones, in metres.
 const AXIS_STEP_M: f32 = 0.05;
 /// Spacing of the surface samples for the supported share, in metres.
-const SURFACE_STEP_M: f32 = 0.02;
+pub(super) const SURFACE_STEP_M: f32 = 0.02;
 /// At most this many surface samples; coarser spacing for huge models.
-const MAX_SURFACE_SAMPLES: f32 = 2.0e6;
+pub(super) const MAX_SURFACE_SAMPLES: f32 = 2.0e6;
+/// A point this close to the surface fits tightly (the 2 cm figure).
+pub(super) const TIGHT_M: f32 = 0.02;
+/// A point this close to the surface is near it (the 5 cm figures).
+pub(super) const NEAR_M: f32 = 0.05;
 
 /// Point-to-surface fit of a skeleton to a cloud.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -140,7 +144,7 @@ fn point_distances(cones: &[Cone], points: &[Vec3]) -> (f32, f32, f32) {
     let max_r = cones.iter().map(|c| c.ra.max(c.rb)).fold(0.0, f32::max);
     // Any cone whose surface is within 5 cm of a point has an axis sample
     // within max radius + half a step + 5 cm of it.
-    let reach = max_r + 0.5 * AXIS_STEP_M + 0.05;
+    let reach = max_r + 0.5 * AXIS_STEP_M + NEAR_M;
     let (mut n2, mut n5, mut sum) = (0usize, 0usize, 0.0f64);
     let mut seen: Vec<u32> = Vec::new();
     for &p in points {
@@ -153,15 +157,15 @@ fn point_distances(cones: &[Cone], points: &[Vec3]) -> (f32, f32, f32) {
                 best = best.min(cones[k as usize].distance(p));
             }
         }
-        if best > 0.05 {
+        if best > NEAR_M {
             // Far from every surface: the nearest axis sample's cone gives
             // the distance (an upper bound off by at most a few cm).
             if let Some(n) = index.nearest(p) {
                 best = best.min(cones[owner[n.index] as usize].distance(p));
             }
         }
-        n2 += usize::from(best <= 0.02);
-        n5 += usize::from(best <= 0.05);
+        n2 += usize::from(best <= TIGHT_M);
+        n5 += usize::from(best <= NEAR_M);
         sum += f64::from(best);
     }
     let n = points.len() as f32;
@@ -203,7 +207,7 @@ fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
                 total += weight;
                 if index
                     .nearest(q)
-                    .is_some_and(|n| n.distance_sq <= 0.05 * 0.05)
+                    .is_some_and(|n| n.distance_sq <= NEAR_M * NEAR_M)
                 {
                     supported += weight;
                 }

@@ -4,6 +4,8 @@
 //!   symmetric distances), for synthetic trees;
 //! - [`fit`]: point-to-surface fit of the reconstructed cylinders, for real
 //!   clouds without truth;
+//! - [`mesh_fit`]: the same figures for the swept triangle mesh users
+//!   download;
 //! - [`run`]: one report row per tree (reconstruction timed as a median);
 //! - [`report`]: the report's table rendering and timing helpers.
 //!
@@ -11,5 +13,6 @@
 
 pub mod compare;
 pub mod fit;
+pub mod mesh_fit;
 pub mod report;
 pub mod run;

@@ -10,11 +10,13 @@ use serde::Serialize;
 
 use super::compare::{SkeletonComparison, compare};
 use super::fit::{SurfaceFit, surface_fit};
+use super::mesh_fit::mesh_fit;
 use super::report::{Source, timed_median};
 use crate::cityjson::lod_figures;
 use crate::cloud::PointCloud;
 use crate::encode::chaincode;
 use crate::encode::lsystem::{self, LsJson, LsOptions};
+use crate::mesh::{Lod, build_mesh};
 use crate::reconstruct::metrics::TreeMetrics;
 use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
 use crate::skeleton::{NodeId, Skeleton};
@@ -83,8 +85,11 @@ pub struct TreeRow {
     pub metrics: Option<TreeMetrics>,
     /// Against the truth, for synthetic trees.
     pub truth: Option<TruthFigures>,
-    /// Point-to-surface fit, for dense reconstructions.
+    /// Point-to-surface fit of the cylinders, for dense reconstructions.
     pub fit: Option<SurfaceFit>,
+    /// Point-to-surface fit of the LOD 3 triangle mesh, for dense
+    /// reconstructions.
+    pub mesh_fit: Option<SurfaceFit>,
     /// Best efforts flagged by the reconstruction.
     pub notes: Vec<String>,
     /// Encoding figures (issue 4).
@@ -198,6 +203,7 @@ fn empty_row(name: &str, source: Source, points: usize, time: Duration, runs: us
         metrics: None,
         truth: None,
         fit: None,
+        mesh_fit: None,
         notes: Vec::new(),
         encoding: None,
         lods: Vec::new(),
@@ -220,6 +226,8 @@ fn fill(
     row.truth = truth.map(|t| truth_figures(t, rec, opts));
     if rec.mode == Mode::Dense {
         row.fit = Some(surface_fit(&rec.skeleton, cloud));
+        let mesh = build_mesh(&rec.skeleton, Lod::L3);
+        row.mesh_fit = Some(mesh_fit(&mesh, rec.skeleton.anchor(), cloud));
     }
     row.encoding = Some(encoding_figures(&rec.skeleton));
     row.lods = lod_figures(&rec.skeleton)

@@ -47,7 +47,7 @@ pub use gltf::glb;
 pub use lod::{Lod, prune_thin_branches, select, trunk_radius_m};
 pub use obj::obj;
 pub use ply::{mesh_ply, skeleton_ply};
-pub use sweep::MIN_RADIUS_M;
+pub use sweep::{MIN_RADIUS_M, ring_radius_scale};
 pub use table::{CYLINDER_TABLE_HEADER, cylinder_table_csv};
 
 /// An indexed triangle mesh, coordinates in metres relative to the

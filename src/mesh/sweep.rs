@@ -8,6 +8,13 @@
 //! leaves no gap. Every tube is closed: a flat disc at its base and a low
 //! cone (a rounded tip when smooth-shaded) at its end, so each tube bounds a
 //! volume and its faces all wind counter-clockwise seen from outside.
+//!
+//! A ring is a regular polygon standing for a circle. Were its vertices on
+//! the circle, every face would lie inside it (by up to 29 % of the radius
+//! mid-edge for a four-sided twig) and the mesh would miss points on the bark
+//! that the cylinders fit; [`ring_radius_scale`] instead places them so that
+//! the polygon has the circle's perimeter, hence the tube the cylinder's
+//! surface area, with the faces straddling the true surface.
 
 use glam::Vec3;
 
@@ -25,6 +32,22 @@ const MIN_STEP_M: f32 = 0.001;
 /// Height of a tip's cone cap as a fraction of the tip radius.
 const TIP_CAP_HEIGHT: f32 = 0.5;
 
+/// How far out a ring's vertices lie, as a multiple of the branch radius,
+/// for a ring of `segments` vertices: `(π/n) / sin(π/n)`, which gives the
+/// polygon the perimeter of the circle (1.209 for 3 vertices, 1.111 for 4,
+/// 1.012 for 12; 1 in the limit).
+///
+/// ```
+/// use silva::mesh::ring_radius_scale;
+/// let n = 12;
+/// let side = 2.0 * ring_radius_scale(n) * (std::f32::consts::PI / n as f32).sin();
+/// assert!((side * n as f32 - std::f32::consts::TAU).abs() < 1e-5);
+/// ```
+pub fn ring_radius_scale(segments: u32) -> f32 {
+    let half_angle = std::f32::consts::PI / segments.max(3) as f32;
+    half_angle / half_angle.sin()
+}
+
 /// Sweeps every branch of `skeleton` (already reduced to the level) at the
 /// ring resolution of `lod`.
 pub(super) fn sweep(skeleton: &Skeleton, lod: Lod) -> Mesh {
@@ -37,6 +60,7 @@ pub(super) fn sweep(skeleton: &Skeleton, lod: Lod) -> Mesh {
         samples: Vec::new(),
         normals: Vec::new(),
         ring: Vec::new(),
+        ring_scale: 1.0,
     };
     let estimate = skeleton.len() * 2 * resolution.max_segments as usize;
     sweeper.mesh.positions.reserve(estimate);
@@ -63,6 +87,8 @@ struct Sweeper {
     normals: Vec<Vec3>,
     /// Unit (cos, sin) around the current ring.
     ring: Vec<(f32, f32)>,
+    /// [`ring_radius_scale`] of the current ring.
+    ring_scale: f32,
 }
 
 impl Sweeper {
@@ -81,6 +107,7 @@ impl Sweeper {
         );
         rotation_minimising_normals(&self.samples, &mut self.normals);
         let segments = self.resolution.segments(self.radii[0]) as usize;
+        self.ring_scale = ring_radius_scale(segments as u32);
         self.ring = (0..segments)
             .map(|j| {
                 let angle = std::f32::consts::TAU * j as f32 / segments as f32;
@@ -132,6 +159,7 @@ impl Sweeper {
     fn emit_tube(&mut self) {
         let mesh = &mut self.mesh;
         let n = self.ring.len() as u32;
+        let scale = self.ring_scale;
         let first = &self.samples[0];
         let base = mesh.push_vertex(first.centre, -first.tangent);
         let ring0 = mesh.positions.len() as u32;
@@ -142,7 +170,7 @@ impl Sweeper {
                 let surface_normal = (radial - s.tangent * s.radius_slope)
                     .try_normalize()
                     .unwrap_or(radial);
-                mesh.push_vertex(s.centre + radial * s.radius_m, surface_normal);
+                mesh.push_vertex(s.centre + radial * (s.radius_m * scale), surface_normal);
             }
         }
         let last = self.samples[self.samples.len() - 1];
