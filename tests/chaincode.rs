@@ -265,6 +265,36 @@ fn truncated_streams_are_errors() {
 }
 
 #[test]
+fn split_streams_are_used_and_other_move_orders_fall_back() {
+    let limits = Limits::default();
+    let s = botanical_tree(2, 600);
+    let code = encode(&s, &ChainOptions::default()).unwrap();
+    let packed = code.compress();
+    assert_eq!(packed[5], 2, "the encoder's codes use the split streams");
+    assert_eq!(code.compressed_sizes().kind, 2);
+    assert_eq!(code.compressed_sizes().total_bytes, packed.len());
+    assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), code);
+
+    // Swap two adjacent moves on different axes: the same geometry, but not
+    // the encoder's move order, so only the single-string form (kind 1) can
+    // hold it.
+    let mut symbols = code.symbols().to_vec();
+    let at = symbols
+        .windows(2)
+        .position(|w| w[0] < 6 && w[1] < 6 && w[0] % 3 < w[1] % 3)
+        .expect("some internode moves along two axes");
+    symbols.swap(at, at + 1);
+    let odd = ChainCode::new(code.header().clone(), symbols, code.radii_q().to_vec()).unwrap();
+    assert_eq!(decode(&odd).unwrap(), decode(&code).unwrap());
+    let packed = odd.compress();
+    assert_eq!(packed[5], 1);
+    assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), odd);
+    for cut in 0..packed.len() {
+        assert!(ChainCode::decompress(&packed[..cut], &limits).is_err());
+    }
+}
+
+#[test]
 fn huge_declared_counts_are_refused_before_allocating() {
     let s = random_skeleton(3, 10);
     let code = encode(&s, &ChainOptions::default()).unwrap();
