@@ -64,6 +64,11 @@ fn main() {
             sz.radius_bits as f64 / 8.0 / n,
         );
         println!(
+            "  paper's single-string form (kind 1): {} B = {:.3} B/in",
+            code.compress_single_string().len(),
+            code.compress_single_string().len() as f64 / n
+        );
+        println!(
             "  symbols {} ({:.2}/in), counts {:?}, order-0 entropy {:.0} B",
             code.symbols().len(),
             code.symbols().len() as f64 / n,

@@ -240,6 +240,22 @@ fn compressed_botanical_tree_is_small_at_r5() {
 }
 
 #[test]
+fn split_streams_shrink_irregular_skeletons() {
+    // Random directions and lengths stand in for reconstructed skeletons,
+    // whose corrections are large: there the split streams save most.
+    for seed in 0..4 {
+        let s = random_skeleton(seed, 2000);
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        let split = code.compress().len() as f64;
+        let single = code.compress_single_string().len() as f64;
+        assert!(
+            split <= 0.9 * single,
+            "seed {seed}: {split} vs {single} bytes"
+        );
+    }
+}
+
+#[test]
 fn truncated_streams_are_errors() {
     let s = botanical_tree(1, 400);
     let code = encode(&s, &ChainOptions::default()).unwrap();

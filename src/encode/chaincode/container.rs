@@ -100,11 +100,15 @@ impl ChainCode {
         ChainCode::new(header, symbols, radii_q)
     }
 
-    /// Interpolative compression (§3.3): symbols through BWT, MTF and a
-    /// cumulative sum; radii per branch inverted into gaps, made
-    /// non-negative and summed; both sequences binary-interpolative coded.
+    /// Interpolative compression (§3.3): BWT, MTF, cumulative sums and
+    /// binary interpolative coding of the symbols and of the per-branch
+    /// radius gaps.
+    ///
+    /// Writes the split-stream form (kind 2, `split.rs`) when the code is in
+    /// the encoder's move order and that is shorter, else the paper's single
+    /// string form ([`ChainCode::compress_single_string`], kind 1).
     pub fn compress(&self) -> Vec<u8> {
-        let single = self.compress_single();
+        let single = self.compress_single_string();
         let split = split::compress_payload(self).map(|payload| {
             let mut out = self.header_bytes(KIND_SPLIT);
             out.extend(payload);
@@ -116,9 +120,11 @@ impl ChainCode {
         }
     }
 
-    /// Kind 1: the paper's single symbol string (BWT, MTF, cumulative sum,
-    /// binary interpolative coding) and one radius gap sequence.
-    fn compress_single(&self) -> Vec<u8> {
+    /// Kind 1, the paper's form (§3.3): the whole symbol string through BWT,
+    /// MTF, cumulative sum and binary interpolative coding, and one radius gap
+    /// sequence. [`ChainCode::decompress`] reads it; [`ChainCode::compress`]
+    /// uses it when the split streams are not shorter.
+    pub fn compress_single_string(&self) -> Vec<u8> {
         let mut out = self.header_bytes(KIND_INTERPOLATIVE);
         let (last, primary) = bwt::bwt_forward(&self.symbols, ALPHABET);
         let indices = mtf::mtf_forward(&last, ALPHABET);
