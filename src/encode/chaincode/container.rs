@@ -188,8 +188,15 @@ impl ChainCode {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
         if kind == KIND_SPLIT {
+            // The payload reader has checked the symbols' grammar and the
+            // radius count (`lod::scan`), and `read_header` the header: the
+            // checks of `ChainCode::new`, not repeated here.
             let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes)?;
-            return ChainCode::new(header, symbols, radii_q);
+            return Ok(ChainCode {
+                header,
+                symbols,
+                radii_q,
+            });
         }
         if kind != KIND_INTERPOLATIVE {
             return Err(ChainError::Malformed(
