@@ -2,7 +2,9 @@
 //! at least 5 million per second at r = 5).
 //!
 //! `cargo bench --bench chaincode`. Trees come from the test generator
-//! (`tests/chaincode_support`): smooth, ~3,000 internodes.
+//! (`tests/chaincode_support`): smooth, ~3,000 internodes; and, as a stand-in
+//! for skeletons reconstructed from point clouds (wiggly, bushy), a random
+//! skeleton of 3,000 nodes.
 
 use std::hint::black_box;
 
@@ -51,6 +53,18 @@ fn chaincode(c: &mut Criterion) {
         group.bench_function("compress", |b| b.iter(|| black_box(&code).compress()));
         group.finish();
     }
+    let tree = chaincode_support::random_skeleton(7, 3000);
+    let code = encode(&tree, &ChainOptions::default()).expect("encodable");
+    let packed = code.compress();
+    let mut group = c.benchmark_group("chaincode_random_r5");
+    group.throughput(Throughput::Elements(tree.internode_count() as u64));
+    group.bench_function("decompress+decode", |b| {
+        b.iter(|| {
+            let code = ChainCode::decompress(black_box(&packed), &limits).expect("valid");
+            decode(&code).expect("valid")
+        })
+    });
+    group.finish();
 }
 
 criterion_group!(benches, chaincode);

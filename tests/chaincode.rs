@@ -240,6 +240,22 @@ fn compressed_botanical_tree_is_small_at_r5() {
 }
 
 #[test]
+fn split_streams_shrink_irregular_skeletons() {
+    // Random directions and lengths stand in for reconstructed skeletons,
+    // whose corrections are large: there the split streams save most.
+    for seed in 0..4 {
+        let s = random_skeleton(seed, 2000);
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        let split = code.compress().len() as f64;
+        let single = code.compress_single_string().len() as f64;
+        assert!(
+            split <= 0.9 * single,
+            "seed {seed}: {split} vs {single} bytes"
+        );
+    }
+}
+
+#[test]
 fn truncated_streams_are_errors() {
     let s = botanical_tree(1, 400);
     let code = encode(&s, &ChainOptions::default()).unwrap();
@@ -262,6 +278,36 @@ fn truncated_streams_are_errors() {
     assert!(chaincode::is_chain_code(&plain) && chaincode::is_chain_code(&packed));
     assert!(ChainCode::from_bytes(&packed, &limits).is_err());
     assert!(ChainCode::decompress(&plain, &limits).is_err());
+}
+
+#[test]
+fn split_streams_are_used_and_other_move_orders_fall_back() {
+    let limits = Limits::default();
+    let s = botanical_tree(2, 600);
+    let code = encode(&s, &ChainOptions::default()).unwrap();
+    let packed = code.compress();
+    assert_eq!(packed[5], 2, "the encoder's codes use the split streams");
+    assert_eq!(code.compressed_sizes().kind, 2);
+    assert_eq!(code.compressed_sizes().total_bytes, packed.len());
+    assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), code);
+
+    // Swap two adjacent moves on different axes: the same geometry, but not
+    // the encoder's move order, so only the single-string form (kind 1) can
+    // hold it.
+    let mut symbols = code.symbols().to_vec();
+    let at = symbols
+        .windows(2)
+        .position(|w| w[0] < 6 && w[1] < 6 && w[0] % 3 < w[1] % 3)
+        .expect("some internode moves along two axes");
+    symbols.swap(at, at + 1);
+    let odd = ChainCode::new(code.header().clone(), symbols, code.radii_q().to_vec()).unwrap();
+    assert_eq!(decode(&odd).unwrap(), decode(&code).unwrap());
+    let packed = odd.compress();
+    assert_eq!(packed[5], 1);
+    assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), odd);
+    for cut in 0..packed.len() {
+        assert!(ChainCode::decompress(&packed[..cut], &limits).is_err());
+    }
 }
 
 #[test]

@@ -30,7 +30,9 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
-use super::{ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf};
+use super::{
+    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf, split,
+};
 use crate::skeleton::Anchor;
 use glam::{DVec3, Vec3};
 
@@ -41,6 +43,7 @@ pub const VERSION: u8 = 1;
 
 const KIND_PLAIN: u8 = 0;
 const KIND_INTERPOLATIVE: u8 = 1;
+const KIND_SPLIT: u8 = 2;
 const FLAG_CRS: u8 = 1;
 const FLAG_RESOLUTION: u8 = 2;
 const MAX_SYMBOL_GAP: u64 = (ALPHABET - 1) as u64;
@@ -97,10 +100,31 @@ impl ChainCode {
         ChainCode::new(header, symbols, radii_q)
     }
 
-    /// Interpolative compression (§3.3): symbols through BWT, MTF and a
-    /// cumulative sum; radii per branch inverted into gaps, made
-    /// non-negative and summed; both sequences binary-interpolative coded.
+    /// Interpolative compression (§3.3): BWT, MTF, cumulative sums and
+    /// binary interpolative coding of the symbols and of the per-branch
+    /// radius gaps.
+    ///
+    /// Writes the split-stream form (kind 2, `split.rs`) when the code is in
+    /// the encoder's move order and that is shorter, else the paper's single
+    /// string form ([`ChainCode::compress_single_string`], kind 1).
     pub fn compress(&self) -> Vec<u8> {
+        let single = self.compress_single_string();
+        let split = split::compress_payload(self).map(|payload| {
+            let mut out = self.header_bytes(KIND_SPLIT);
+            out.extend(payload);
+            out
+        });
+        match split {
+            Some(split) if split.len() < single.len() => split,
+            _ => single,
+        }
+    }
+
+    /// Kind 1, the paper's form (§3.3): the whole symbol string through BWT,
+    /// MTF, cumulative sum and binary interpolative coding, and one radius gap
+    /// sequence. [`ChainCode::decompress`] reads it; [`ChainCode::compress`]
+    /// uses it when the split streams are not shorter.
+    pub fn compress_single_string(&self) -> Vec<u8> {
         let mut out = self.header_bytes(KIND_INTERPOLATIVE);
         let (last, primary) = bwt::bwt_forward(&self.symbols, ALPHABET);
         let indices = mtf::mtf_forward(&last, ALPHABET);
@@ -130,10 +154,50 @@ impl ChainCode {
         out
     }
 
+    /// Where the bytes of [`ChainCode::compress`] go: header, stream
+    /// metadata (varints), and the bits of each interpolative code.
+    pub fn compressed_sizes(&self) -> CompressedSizes {
+        let total = self.compress();
+        let header_bytes = self.header_bytes(total[5]).len();
+        let [structure_bits, move_bits, radius_bits] = if total[5] == KIND_SPLIT {
+            split::stream_bits(self).expect("the split form was written")
+        } else {
+            let (last, _) = bwt::bwt_forward(&self.symbols, ALPHABET);
+            let indices = mtf::mtf_forward(&last, ALPHABET);
+            let code_sums = cumulative(indices.iter().map(|&i| u64::from(i)));
+            let mut w = BitWriter::new();
+            interpolative::encode_into(&mut w, &code_sums, MAX_SYMBOL_GAP);
+            let symbol_bits = w.bit_len();
+            let payload_bits = (total.len() - header_bytes) as u64 * 8;
+            [0, symbol_bits, payload_bits.saturating_sub(symbol_bits)]
+        };
+        let payload = (structure_bits + move_bits + radius_bits).div_ceil(8) as usize;
+        CompressedSizes {
+            total_bytes: total.len(),
+            kind: total[5],
+            header_bytes,
+            metadata_bytes: total.len().saturating_sub(header_bytes + payload),
+            structure_bits,
+            move_bits,
+            radius_bits,
+        }
+    }
+
     /// Reads the interpolative form, checking everything against `limits`.
     pub fn decompress(bytes: &[u8], limits: &Limits) -> Result<ChainCode, ChainError> {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
+        if kind == KIND_SPLIT {
+            // The payload reader has checked the symbols' grammar and the
+            // radius count (`lod::scan`), and `read_header` the header: the
+            // checks of `ChainCode::new`, not repeated here.
+            let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes)?;
+            return Ok(ChainCode {
+                header,
+                symbols,
+                radii_q,
+            });
+        }
         if kind != KIND_INTERPOLATIVE {
             return Err(ChainError::Malformed(
                 "not a compressed chain code; use from_bytes",
@@ -216,6 +280,26 @@ impl ChainCode {
     }
 }
 
+/// The parts of a compressed chain code ([`ChainCode::compressed_sizes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CompressedSizes {
+    /// Length of [`ChainCode::compress`]'s output.
+    pub total_bytes: usize,
+    /// The common header (georeference, voxel size, counts).
+    pub header_bytes: usize,
+    /// Container kind: 1 single symbol string, 2 split streams.
+    pub kind: u8,
+    /// Varints and flags between the header and the bit stream.
+    pub metadata_bytes: usize,
+    /// Kind 2: the interpolative code of the structure (terminators and
+    /// fork markers); 0 for kind 1.
+    pub structure_bits: u64,
+    /// Kind 2: the six correction streams; kind 1: the whole symbol string.
+    pub move_bits: u64,
+    /// The radius codes (kind 1: with the bit stream's padding).
+    pub radius_bits: u64,
+}
+
 /// True if `bytes` start like a chain code stream of either kind.
 pub fn is_chain_code(bytes: &[u8]) -> bool {
     bytes.starts_with(MAGIC)
@@ -286,7 +370,7 @@ fn read_header(
 
 /// The mapping that codes the radius gaps in fewer bits, with its
 /// cumulative sums.
-fn best_radius_mapping(gaps: &[i64]) -> (GapMapping, Vec<u64>) {
+pub(super) fn best_radius_mapping(gaps: &[i64]) -> (GapMapping, Vec<u64>) {
     let min = gaps.iter().copied().min().unwrap_or(0);
     [GapMapping::Offset(min), GapMapping::Zigzag]
         .into_iter()
@@ -303,7 +387,7 @@ fn best_radius_mapping(gaps: &[i64]) -> (GapMapping, Vec<u64>) {
         .expect("two candidates")
 }
 
-fn cumulative(values: impl Iterator<Item = u64>) -> Vec<u64> {
+pub(super) fn cumulative(values: impl Iterator<Item = u64>) -> Vec<u64> {
     values
         .scan(0u64, |acc, v| {
             *acc += v;
@@ -312,7 +396,7 @@ fn cumulative(values: impl Iterator<Item = u64>) -> Vec<u64> {
         .collect()
 }
 
-fn differences(sums: &[u64]) -> impl Iterator<Item = u64> + '_ {
+pub(super) fn differences(sums: &[u64]) -> impl Iterator<Item = u64> + '_ {
     sums.iter().scan(0u64, |prev, &s| {
         let d = s - *prev;
         *prev = s;
@@ -320,10 +404,10 @@ fn differences(sums: &[u64]) -> impl Iterator<Item = u64> + '_ {
     })
 }
 
-fn zigzag(v: i64) -> u64 {
+pub(super) fn zigzag(v: i64) -> u64 {
     ((v << 1) ^ (v >> 63)) as u64
 }
 
-fn unzigzag(u: u64) -> i64 {
+pub(super) fn unzigzag(u: u64) -> i64 {
     ((u >> 1) as i64) ^ -((u & 1) as i64)
 }

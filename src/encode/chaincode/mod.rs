@@ -29,6 +29,12 @@
 //! - **Multi-way forks** become a run of fork symbols: the first ends the
 //!   internode, each further one is a zero-length internode at the same node
 //!   that enqueues one more lateral.
+//! - **Compression** ([`ChainCode::compress`]): the paper's BWT, MTF,
+//!   cumulative sums and binary interpolative coding, applied either to the
+//!   whole symbol string (kind 1, the paper's form) or, shorter on irregular
+//!   skeletons, to split streams: terminators, per-axis corrections of
+//!   branch-first and continuation internodes, tip radii and radius
+//!   increases (kind 2, `split.rs`).
 //! - **Error bound.** Every decoded node lies within `√3·d/2` of its original
 //!   position, independently of its depth (no drift: the voxel coordinates are
 //!   exact integers). Each radius is within `radius_step_m / 2`.
@@ -65,6 +71,7 @@ mod interpolative;
 mod lod;
 mod mtf;
 mod radii;
+mod split;
 mod stats;
 
 use glam::Vec3;
@@ -72,7 +79,7 @@ use glam::Vec3;
 use crate::skeleton::{Anchor, SkeletonError};
 
 pub use bwt::{bwt_forward, bwt_inverse};
-pub use container::{MAGIC, VERSION, is_chain_code};
+pub use container::{CompressedSizes, MAGIC, VERSION, is_chain_code};
 pub use dbf6::{decode, encode, encode_order};
 pub use interpolative::{bic_decode, bic_encode};
 pub use lod::{lod_thresholds, prune_like_lod, reduce_lod};
