@@ -109,8 +109,10 @@ fn synthetic_als_scans_of_broad_crowns_are_precise() {
             "{name} {seed}: height error {}",
             f.height_error_m
         );
-        // Regression floor, not the 0.5 m target: asymmetric broad crowns
-        // without trunk hits still put the base 0.9-1.1 m off (issue 3 note).
+        // Regression floor, not the 0.5 m target: without a return below
+        // the crown the base is the crown footprint's centre (Eq. 4), and
+        // the synthetic trunks lean 1-3 m over their height, so asymmetric
+        // broad crowns still put the base 0.6-1.9 m off (oak 2: 1.10 m).
         assert!(
             f.base_offset_m <= 1.5,
             "{name} {seed}: base offset {}",

@@ -10,11 +10,14 @@
 //! centre of the crown's ground footprint g_b, with trunk points interpolated
 //! up to the crown centroid v_c (Eq. 4).
 //!
-//! Two additions for AHN densities, where a trunk is hit once or not at all:
-//! a lowest point without neighbours (n_avg undefined) is taken as a trunk
-//! hit on a vertical trunk when it lies within half the λ2 limit of the
-//! centreline; and above v_low the Eq. 3 trunk continues vertically to the
-//! height of the crown centroid, as the Eq. 4 trunk does.
+//! Three additions for AHN densities, where a trunk is hit once or not at
+//! all: v_low counts as a trunk hit only when it starts a column of returns
+//! (the points less than r above it stay within r / 2 of it horizontally),
+//! since the lowest return is as often the tip of a low limb among other
+//! limbs' returns; a lowest point without neighbours (n_avg undefined) is
+//! taken as a hit on a vertical trunk; and above v_low the Eq. 3 trunk
+//! rises vertically to the crown's lowest layer, then follows the Eq. 4
+//! line to the crown centroid, as the Eq. 4 trunk does.
 
 use glam::{Vec2, Vec3};
 
@@ -87,14 +90,15 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     let half_diagonal = (v_max.truncate() - centre_xy).length().max(f32::EPSILON);
     let lambda2 = (v_low.truncate() - centre_xy).length() / half_diagonal;
     let lambda1_deg = n_avg.angle_between(Vec3::Z).to_degrees();
-    // Without a measured direction the point's position is the only
-    // evidence, so it has to sit twice as close to the centreline.
-    let lambda2_max = if measured.is_some() {
-        params.lambda2_max
-    } else {
-        params.lambda2_max * 0.5
-    };
-    let eq3 = (lambda1_deg <= params.lambda1_max_deg && lambda2 <= lambda2_max && n_avg.z > 1e-3)
+    // v_low can only be a trunk hit when it starts a column: at AHN
+    // densities the lowest return is as often the tip of a low limb, with
+    // other limbs' returns around it at the same height (λ1 and λ2 alone
+    // accepted such a limb 1.8 m from the trunk on a synthetic poplar).
+    let column = starts_column(tree, v_low, params.trunk_sphere_m);
+    let eq3 = (column
+        && lambda1_deg <= params.lambda1_max_deg
+        && lambda2 <= params.lambda2_max
+        && n_avg.z > 1e-3)
         .then_some(n_avg);
     // The paper leaves the spacing of inserted points open. Half of r_p
     // keeps each trunk point short of k trunk neighbours within r_p, so
@@ -113,9 +117,18 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
             // so the trunk continues to the crown's centre of mass as in
             // Eq. 4; without it the skeleton would have to find its way up
             // through the empty space under the crown.
-            if v_c.z > low.z + spacing {
-                let up = Vec3::new(low.x, low.y, v_c.z);
-                points.extend(line(low, up, spacing).into_iter().skip(1));
+            // It rises vertically to the crown's lowest layer (§5.3: trunks
+            // grow nearly perpendicular to the ground) and then follows
+            // the Eq. 4 line to the centroid.
+            let crown_base = crown_base_z(tree, v_low, params.trunk_sphere_m);
+            let mut from = low;
+            if crown_base > low.z + spacing && crown_base < v_c.z {
+                let knee = Vec3::new(low.x, low.y, crown_base);
+                points.extend(line(low, knee, spacing).into_iter().skip(1));
+                from = knee;
+            }
+            if v_c.z > from.z + spacing {
+                points.extend(line(from, v_c, spacing).into_iter().skip(1));
             }
             (TrunkRule::FromLowestPoint, points)
         }
@@ -133,6 +146,27 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         lambda1_deg,
         lambda2,
     }
+}
+
+/// Whether the tree points less than `radius_m` above `v_low` all lie
+/// within half of `radius_m` of it horizontally: a trunk seen from above is
+/// a column of returns (or one return below the crown), whereas the lowest
+/// layer of a crown spreads over metres.
+fn starts_column(tree: &[Vec3], v_low: Vec3, radius_m: f32) -> bool {
+    let reach = radius_m * 0.5;
+    tree.iter()
+        .filter(|p| p.z < v_low.z + radius_m)
+        .all(|p| (p.truncate() - v_low.truncate()).length() <= reach)
+}
+
+/// Height of the crown's lowest layer: the lowest tree point outside the
+/// column of `radius_m` / 2 around `v_low` (see [`starts_column`]).
+fn crown_base_z(tree: &[Vec3], v_low: Vec3, radius_m: f32) -> f32 {
+    let reach = radius_m * 0.5;
+    tree.iter()
+        .filter(|p| (p.truncate() - v_low.truncate()).length() > reach)
+        .map(|p| p.z)
+        .fold(f32::INFINITY, f32::min)
 }
 
 /// n_avg: the normalised mean of the unit directions from `v_low` to its
@@ -169,4 +203,44 @@ fn line(from: Vec3, to: Vec3, step_m: f32) -> Vec<Vec3> {
     (0..=steps)
         .map(|s| from.lerp(to, s as f32 / steps as f32))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ring of crown returns 6 m up, radius 3 m around the origin.
+    fn crown() -> Vec<Vec3> {
+        (0..60)
+            .map(|k| {
+                let a = k as f32 * 0.7;
+                let z = 6.0 + (k % 7) as f32 * 0.5;
+                Vec3::new(3.0 * a.cos(), 3.0 * a.sin(), z)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_return_below_the_crown_is_a_trunk_hit() {
+        let mut tree = crown();
+        tree.push(Vec3::new(0.2, -0.1, 1.0));
+        let trunk = add_trunk(&tree, None, &Params::default());
+        assert_eq!(trunk.rule, TrunkRule::FromLowestPoint);
+        assert!(trunk.points[0].truncate().distance(Vec2::new(0.2, -0.1)) < 1e-3);
+    }
+
+    #[test]
+    fn a_low_limb_among_others_is_not_a_trunk_hit() {
+        let mut tree = crown();
+        // The lowest return is a limb tip 1 m from the centreline, with
+        // other limbs' returns beside it at the same height.
+        // λ1 and λ2 alone accept it: its neighbour lies nearly above it.
+        tree.push(Vec3::new(1.0, 0.0, 4.6));
+        tree.push(Vec3::new(1.0, -0.2, 5.3));
+        tree.push(Vec3::new(-1.0, 0.2, 4.9));
+        tree.push(Vec3::new(0.1, 1.0, 5.0));
+        let trunk = add_trunk(&tree, None, &Params::default());
+        assert!(trunk.lambda1_deg <= 30.0 && trunk.lambda2 <= 0.25);
+        assert_eq!(trunk.rule, TrunkRule::FromCrownCentre);
+    }
 }
