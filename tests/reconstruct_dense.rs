@@ -193,6 +193,30 @@ fn auto_mode_picks_dense_for_a_terrestrial_scan_and_says_why() {
     );
 }
 
+/// Slender synthetic trees scanned from the ground have fewer points per m²
+/// of crown projection than the density threshold, but centimetre spacing;
+/// their airborne scans have neither. Auto mode must tell them apart.
+#[test]
+fn auto_mode_tells_slender_terrestrial_trees_from_airborne_scans() {
+    use silva::reconstruct::survey;
+    use silva::synth::{
+        AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+    };
+    for (species, seed) in [(Species::Birch, 2), (Species::Pine, 8)] {
+        let tree = generate(
+            &TreeParams::preset(species),
+            seed,
+            silva::Anchor::at(OFFSET),
+        );
+        let tls = simulate_tls(&tree, &TlsOptions::default(), seed);
+        let (mode, why) = survey(&tls).choose(&Options::default().auto);
+        assert_eq!(mode, Mode::Dense, "{species:?} TLS: {why}");
+        let als = simulate_als(&tree, &AlsOptions::default(), seed);
+        let (mode, why) = survey(&als).choose(&Options::default().auto);
+        assert_eq!(mode, Mode::Airborne, "{species:?} ALS: {why}");
+    }
+}
+
 #[test]
 fn the_cylinders_fit_the_scan() {
     let cloud = PointCloud::from_points(OFFSET, scan(&y_tree(), 0.015, 3));

@@ -75,7 +75,9 @@ pub struct Options {
     pub auto: AutoThresholds,
 }
 
-/// Thresholds of [`Mode::Auto`]: a cloud is dense when both are met.
+/// Thresholds of [`Mode::Auto`]: a cloud is dense when its trunk is seen all
+/// around and its crown is sampled densely (by points per m² of crown
+/// projection or by point spacing).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AutoThresholds {
     /// Points per m² of crown projection; terrestrial scans have thousands,
@@ -84,6 +86,11 @@ pub struct AutoThresholds {
     /// Share (0–1) of the angular sectors around the lowest metres of the
     /// tree that hold points: a scanned trunk is seen from (nearly) all sides.
     pub min_trunk_coverage: f32,
+    /// A median point spacing at or below this, in metres, is dense too: a
+    /// slender tree (birch, pine) scanned from the ground has a small crown
+    /// projection per point, yet a few centimetres between points, where
+    /// airborne scans have 15 cm or more.
+    pub max_dense_spacing_m: f32,
 }
 
 impl Default for AutoThresholds {
@@ -91,6 +98,7 @@ impl Default for AutoThresholds {
         Self {
             min_density_pts_per_m2: 100.0,
             min_trunk_coverage: 0.5,
+            max_dense_spacing_m: 0.08,
         }
     }
 }
@@ -350,8 +358,9 @@ pub fn survey(cloud: &PointCloud) -> Survey {
 impl Survey {
     /// The pipeline these figures call for, and why.
     pub fn choose(&self, t: &AutoThresholds) -> (Mode, String) {
-        let dense = self.density_pts_per_m2 >= t.min_density_pts_per_m2
-            && self.trunk_coverage >= t.min_trunk_coverage;
+        let crown_dense = self.density_pts_per_m2 >= t.min_density_pts_per_m2
+            || self.spacing_m <= t.max_dense_spacing_m;
+        let dense = crown_dense && self.trunk_coverage >= t.min_trunk_coverage;
         let (mode, verdict) = if dense {
             (Mode::Dense, "dense scan")
         } else {
@@ -359,12 +368,13 @@ impl Survey {
         };
         let reason = format!(
             "{verdict}: {:.0} points/m² of crown projection (dense from {:.0}), trunk coverage \
-             {:.2} (dense from {:.2}), median point spacing {:.3} m",
+             {:.2} (dense from {:.2}), median point spacing {:.3} m (dense up to {:.3})",
             self.density_pts_per_m2,
             t.min_density_pts_per_m2,
             self.trunk_coverage,
             t.min_trunk_coverage,
-            self.spacing_m
+            self.spacing_m,
+            t.max_dense_spacing_m
         );
         (mode, reason)
     }
