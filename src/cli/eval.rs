@@ -134,6 +134,9 @@ fn eval_options(args: &Args) -> EvalOptions {
         min_truth_radius_m: args
             .min_truth_radius
             .unwrap_or(if als { 0.05 } else { 0.0 }),
+        // Synthetic airborne scans see the simulator's foliage, so their
+        // true height is the top of the leaves; terrestrial ones see wood.
+        foliage: als.then(|| AlsOptions::default().foliage),
     }
 }
 

@@ -35,6 +35,9 @@ pub struct EvalOptions {
     pub tolerance_m: f32,
     /// Truth internodes thinner than this do not count towards recall.
     pub min_truth_radius_m: f32,
+    /// The leaves the scan saw (airborne simulations): the true height is
+    /// then the top of the foliage, not of the wood. `None`: wood only.
+    pub foliage: Option<crate::synth::Foliage>,
 }
 
 /// Figures against a known skeleton.
@@ -52,7 +55,8 @@ pub struct TruthFigures {
     pub mean_distance_m: f32,
     /// 95th percentile of the symmetric skeleton distance, in metres.
     pub p95_distance_m: f32,
-    /// Reconstructed minus true height, in metres.
+    /// Reconstructed minus true height, in metres (the true top is that of
+    /// the foliage when [`EvalOptions::foliage`] is set, else of the wood).
     pub height_error_m: f32,
     /// Reconstructed minus true DBH, in metres.
     pub dbh_error_m: f32,
@@ -314,7 +318,11 @@ fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> 
         precision: c.precision,
         mean_distance_m: c.mean_distance_m,
         p95_distance_m: c.p95_distance_m,
-        height_error_m: rec.metrics.height_m - true_height_m(truth),
+        height_error_m: rec.metrics.height_m
+            - opts
+                .foliage
+                .as_ref()
+                .map_or_else(|| true_height_m(truth), |f| f.top_height_m(truth)),
         dbh_error_m: rec.metrics.dbh_m - 2.0 * trunk_radius_at(truth, BREAST_HEIGHT_M),
         trunk_base_offset_m: base_offset.length() as f32,
     }

@@ -63,6 +63,41 @@ impl Default for Foliage {
     }
 }
 
+impl Foliage {
+    /// Height of the tree's top above its root with this foliage on: the
+    /// top of the highest foliage ball, or the highest node when that is
+    /// higher or the tree is leaf-off. An airborne scan of a leafy crown
+    /// samples the leaves, so this, not the highest twig, is the height a
+    /// reconstruction should find.
+    ///
+    /// ```
+    /// use glam::{DVec3, Vec3};
+    /// use silva::synth::Foliage;
+    /// use silva::{Anchor, NodeId, Skeleton};
+    ///
+    /// let mut tree = Skeleton::new(Anchor::at(DVec3::ZERO), 0.2);
+    /// tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 10.0), 0.01);
+    /// assert_eq!(Foliage::default().top_height_m(&tree), 10.6);
+    /// let leaf_off = Foliage { extinction_per_m: 0.0, ..Foliage::default() };
+    /// assert_eq!(leaf_off.top_height_m(&tree), 10.0);
+    /// ```
+    pub fn top_height_m(&self, tree: &Skeleton) -> f32 {
+        let base = tree.position(crate::NodeId::ROOT).z;
+        let leafy = self.extinction_per_m > 0.0 && self.cluster_radius_m > 0.0;
+        tree.ids()
+            .map(|id| {
+                let z = tree.position(id).z - base;
+                let carries_leaves = id.index() > 0 && tree.radius(id) <= self.twig_radius_max_m;
+                if leafy && carries_leaves {
+                    z + self.cluster_radius_m.min(10.0)
+                } else {
+                    z
+                }
+            })
+            .fold(0.0, f32::max)
+    }
+}
+
 /// Options of [`simulate_als`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct AlsOptions {
