@@ -75,6 +75,12 @@ pub struct Params {
     /// The RMS spread from its centroid, in metres, above which a joined
     /// section counts as a thick stem's ring.
     pub ring_spread_m: f32,
+    /// A joined section that the bin alone splits into at least this many
+    /// pieces is a broken ring as well (a limb thinner than
+    /// [`Params::ring_spread_m`] seen in pieces)…
+    pub broken_ring_pieces: u32,
+    /// …when its RMS spread reaches this, in metres.
+    pub broken_ring_spread_m: f32,
     /// Move thick sections' nodes to the centre of a circle fitted to their
     /// points (one-sided scans see arcs whose centroid is off the axis).
     pub centre_arcs: bool,
@@ -115,6 +121,8 @@ impl Default for Params {
             merge_overlapping_arcs: true,
             ring_window_bins: 1,
             ring_spread_m: 0.11,
+            broken_ring_pieces: 3,
+            broken_ring_spread_m: 0.04,
             centre_arcs: true,
             stem_stub_spreads: 0.0,
             smoothing_rounds: 3,
@@ -199,6 +207,8 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             centre_arcs: params.centre_arcs,
             window_bins: params.ring_window_bins,
             thick_spread_m: params.ring_spread_m,
+            broken_ring_pieces: params.broken_ring_pieces,
+            broken_ring_spread_m: params.broken_ring_spread_m,
         },
     );
     drop(g);

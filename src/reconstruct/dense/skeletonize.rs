@@ -39,6 +39,11 @@ pub(super) struct Sectioning {
     /// A section joined through the window counts as a thick stem's ring
     /// when its points spread this far from their centroid (RMS, metres).
     pub(super) thick_spread_m: f32,
+    /// A joined section of at least this many per-bin pieces is a broken
+    /// ring too, when its spread reaches `broken_ring_spread_m`.
+    pub(super) broken_ring_pieces: u32,
+    /// See `broken_ring_pieces`, in metres.
+    pub(super) broken_ring_spread_m: f32,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -131,8 +136,10 @@ pub(super) fn cross_sections(
 }
 
 /// Joins the pieces of thick stems' rings (see [`join_within_windows`]).
-/// Only sections that come out thick are joined: among twigs, the window
-/// would delay forks and lose short branches for nothing.
+/// Only sections that come out thick, or that fall apart into several
+/// pieces across a few centimetres (a thinner limb's broken ring), are
+/// joined: among twigs, the window would delay forks and lose short
+/// branches for nothing.
 fn join_thick_rings(
     points: &[Vec3],
     graph: &Graph,
@@ -144,10 +151,20 @@ fn join_thick_rings(
     let mut wide = uf.clone();
     join_within_windows(graph, bin, opts.window_bins, &mut wide);
     let stats = Stats::gather(points, dist, &mut wide);
+    // Fine pieces per joined section: many pieces mark a broken ring.
+    let mut pieces = vec![0u32; points.len()];
+    for i in 0..points.len() as u32 {
+        if uf.find(i) == i {
+            pieces[wide.find(i) as usize] += 1;
+        }
+    }
     let mut first = vec![u32::MAX; points.len()];
     for i in 0..points.len() as u32 {
         let r = wide.find(i) as usize;
-        if stats.spread(r) < opts.thick_spread_m {
+        let spread = stats.spread(r);
+        let broken_ring =
+            pieces[r] >= opts.broken_ring_pieces && spread >= opts.broken_ring_spread_m;
+        if spread < opts.thick_spread_m && !broken_ring {
             continue;
         }
         if first[r] == u32::MAX {
@@ -363,6 +380,8 @@ mod tests {
                 centre_arcs: false,
                 window_bins: 0,
                 thick_spread_m: 0.0,
+                broken_ring_pieces: u32::MAX,
+                broken_ring_spread_m: 0.0,
             },
         );
         assert_eq!(s.nodes.len(), 2);
@@ -403,6 +422,8 @@ mod tests {
                 centre_arcs: false,
                 window_bins,
                 thick_spread_m: 0.11,
+                broken_ring_pieces: 3,
+                broken_ring_spread_m: 0.04,
             },
         )
     }
