@@ -41,8 +41,23 @@ pub struct SurfaceFit {
     pub mean_distance_m: f32,
     /// Share (0–1) of the surface area with a point within 5 cm.
     pub supported_share: f32,
-    /// Lateral surface area of all cones, in m².
+    /// Area of the fitted surface (the cones, or the mesh triangles), in m².
     pub surface_area_m2: f32,
+}
+
+impl SurfaceFit {
+    /// The fit when there is no surface or no point: no share, an undefined
+    /// (NaN) mean distance.
+    pub(crate) fn nothing_to_fit(points: usize, surface_area_m2: f32) -> Self {
+        SurfaceFit {
+            points,
+            within_2cm: 0.0,
+            within_5cm: 0.0,
+            mean_distance_m: f32::NAN,
+            supported_share: 0.0,
+            surface_area_m2,
+        }
+    }
 }
 
 /// One internode as a truncated cone.
@@ -109,14 +124,7 @@ pub fn surface_fit(skeleton: &Skeleton, cloud: &PointCloud) -> SurfaceFit {
         .collect();
     let surface_area_m2: f32 = cones.iter().map(Cone::lateral_area).sum();
     if cones.is_empty() || cloud.is_empty() {
-        return SurfaceFit {
-            points: cloud.len(),
-            within_2cm: 0.0,
-            within_5cm: 0.0,
-            mean_distance_m: f32::NAN,
-            supported_share: 0.0,
-            surface_area_m2,
-        };
+        return SurfaceFit::nothing_to_fit(cloud.len(), surface_area_m2);
     }
     let (d2, d5, mean) = point_distances(&cones, &cloud.points);
     SurfaceFit {

@@ -67,14 +67,7 @@ pub fn mesh_fit(mesh: &Mesh, anchor: &Anchor, cloud: &PointCloud) -> SurfaceFit 
         .collect();
     let surface_area_m2: f32 = triangles.iter().map(Triangle::area).sum();
     if triangles.is_empty() || cloud.is_empty() {
-        return SurfaceFit {
-            points: cloud.len(),
-            within_2cm: 0.0,
-            within_5cm: 0.0,
-            mean_distance_m: f32::NAN,
-            supported_share: 0.0,
-            surface_area_m2,
-        };
+        return SurfaceFit::nothing_to_fit(cloud.len(), surface_area_m2);
     }
     let bvh = Bvh::new(&triangles);
     let (mut n2, mut n5, mut sum) = (0usize, 0usize, 0.0f64);
