@@ -10,14 +10,18 @@
 //! centre of the crown's ground footprint g_b, with trunk points interpolated
 //! up to the crown centroid v_c (Eq. 4).
 //!
-//! Three additions for AHN densities, where a trunk is hit once or not at
+//! Four additions for AHN densities, where a trunk is hit once or not at
 //! all: v_low counts as a trunk hit only when it starts a column of returns
 //! (the points less than r above it stay within r / 2 of it horizontally),
 //! since the lowest return is as often the tip of a low limb among other
 //! limbs' returns; a lowest point without neighbours (n_avg undefined) is
-//! taken as a hit on a vertical trunk; and above v_low the Eq. 3 trunk
-//! rises vertically to the crown's lowest layer, then follows the Eq. 4
-//! line to the crown centroid, as the Eq. 4 trunk does.
+//! taken as a hit on a vertical trunk, within the paper's λ2 ≤ 0.5 even
+//! where returns with neighbours need the tighter [`Params::lambda2_max`];
+//! above v_low the Eq. 3 trunk rises vertically to the crown's lowest
+//! layer, then follows the Eq. 4 line to the crown centroid, as the Eq. 4
+//! trunk does; and the footprint centre g_b is the area centroid of the
+//! crown's projection rather than the centre of its bounding box (see
+//! [`footprint_centre`]).
 
 use glam::{Vec2, Vec3};
 
@@ -77,7 +81,7 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     let (v_min, v_max) = tree
         .iter()
         .fold((v_low, v_low), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-    let centre_xy = ((v_min + v_max) * 0.5).truncate();
+    let centre_xy = footprint_centre(tree);
     let g_b = centre_xy.extend(ground_at(centre_xy));
     let v_c = tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32;
 
@@ -87,7 +91,10 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     // perpendicular to the ground).
     let measured = mean_direction(tree, v_low, params.trunk_sphere_m);
     let n_avg = measured.unwrap_or(Vec3::Z);
-    let half_diagonal = (v_max.truncate() - centre_xy).length().max(f32::EPSILON);
+    let half_diagonal = ((v_max - v_min) * 0.5)
+        .truncate()
+        .length()
+        .max(f32::EPSILON);
     let lambda2 = (v_low.truncate() - centre_xy).length() / half_diagonal;
     let lambda1_deg = n_avg.angle_between(Vec3::Z).to_degrees();
     // v_low can only be a trunk hit when it starts a column: at AHN
@@ -95,9 +102,17 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     // other limbs' returns around it at the same height (λ1 and λ2 alone
     // accepted such a limb 1.8 m from the trunk on a synthetic poplar).
     let column = starts_column(tree, v_low, params.trunk_sphere_m);
+    // A lone return (no neighbour within r) cannot be a drooping limb's
+    // tip among its foliage, the case the tighter λ2 limit guards against,
+    // so the paper's own limit applies to it.
+    let lambda2_limit = if measured.is_none() {
+        LONE_HIT_LAMBDA2_MAX
+    } else {
+        params.lambda2_max
+    };
     let eq3 = (column
         && lambda1_deg <= params.lambda1_max_deg
-        && lambda2 <= params.lambda2_max
+        && lambda2 <= lambda2_limit
         && n_avg.z > 1e-3)
         .then_some(n_avg);
     // The paper leaves the spacing of inserted points open. Half of r_p
@@ -146,6 +161,34 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         lambda1_deg,
         lambda2,
     }
+}
+
+/// λ2 limit for a lowest point without neighbours: §4.2's 0.5.
+const LONE_HIT_LAMBDA2_MAX: f32 = 0.5;
+
+/// Side of the grid cells of [`footprint_centre`], in metres: at 10–30
+/// returns per m² nearly every 0.5 m cell under a crown holds one.
+const FOOTPRINT_CELL_M: f32 = 0.5;
+
+/// Centre of the crown's ground footprint: the mean of the centres of the
+/// grid cells that hold a tree point. §4.2 takes the centre of the
+/// footprint's bounding box, g_b, which one far-reaching limb moves by half
+/// its reach; the area centroid weighs each part of the crown by the ground
+/// it covers, and unlike the points' centroid it does not lean toward the
+/// side the scanner saw deepest.
+fn footprint_centre(tree: &[Vec3]) -> Vec2 {
+    let cells: std::collections::HashSet<(i32, i32)> = tree
+        .iter()
+        .map(|p| {
+            let c = (p.truncate() / FOOTPRINT_CELL_M).floor();
+            (c.x as i32, c.y as i32)
+        })
+        .collect();
+    let sum: Vec2 = cells
+        .iter()
+        .map(|&(i, j)| (Vec2::new(i as f32, j as f32) + 0.5) * FOOTPRINT_CELL_M)
+        .sum();
+    sum / cells.len().max(1) as f32
 }
 
 /// Whether the tree points less than `radius_m` above `v_low` all lie
@@ -242,5 +285,33 @@ mod tests {
         let trunk = add_trunk(&tree, None, &Params::default());
         assert!(trunk.lambda1_deg <= 30.0 && trunk.lambda2 <= 0.25);
         assert_eq!(trunk.rule, TrunkRule::FromCrownCentre);
+    }
+
+    #[test]
+    fn a_lone_return_off_centre_is_still_a_trunk_hit() {
+        let mut tree = crown();
+        // λ2 ≈ 0.36 (the half diagonal is about 4.3 m): over the tighter
+        // limit for returns with neighbours, within §4.2's 0.5 for a lone one.
+        tree.push(Vec3::new(1.5, 0.3, 1.0));
+        let trunk = add_trunk(&tree, None, &Params::default());
+        assert!(trunk.lambda2 > 0.25 && trunk.lambda2 <= 0.5);
+        assert_eq!(trunk.rule, TrunkRule::FromLowestPoint);
+    }
+
+    #[test]
+    fn one_far_reaching_limb_barely_moves_the_footprint_centre() {
+        // A full crown disc of radius 3 m, 6 m up. A limb reaching 4 m
+        // beyond it moves the bounding box centre by 2 m; the footprint's
+        // area centroid moves by a few decimetres.
+        let mut tree: Vec<Vec3> = (-10..=10)
+            .flat_map(|i| (-10..=10).map(move |j| Vec3::new(i as f32 * 0.3, j as f32 * 0.3, 6.0)))
+            .filter(|p| p.truncate().length() <= 3.0)
+            .collect();
+        tree.extend((0..40).map(|k| Vec3::new(3.0 + k as f32 * 0.1, 0.0, 7.0)));
+        let centre = footprint_centre(&tree);
+        assert!(centre.length() < 0.6, "{centre}");
+        let trunk = add_trunk(&tree, None, &Params::default());
+        assert_eq!(trunk.rule, TrunkRule::FromCrownCentre);
+        assert!(trunk.points[0].truncate().length() < 0.6);
     }
 }
