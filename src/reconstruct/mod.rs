@@ -272,6 +272,36 @@ fn horizontal_spread(points: &[Vec3]) -> (glam::Vec2, f32) {
 /// Standard deviations of the points along their principal axes, largest
 /// first (eigenvalues of the covariance matrix by Jacobi rotations).
 pub(crate) fn principal_spreads(points: &[Vec3]) -> [f64; 3] {
+    let mut ev = symmetric_eigenvalues(covariance(points));
+    ev.sort_by(|a, b| b.total_cmp(a));
+    ev.map(|v| v.max(0.0).sqrt())
+}
+
+/// Unit direction along which the points spread least (the eigenvector of
+/// the smallest covariance eigenvalue): the axis of a thin band of points
+/// around a stem. `None` for fewer than three points or a degenerate spread.
+pub(crate) fn least_spread_axis(points: &[Vec3]) -> Option<Vec3> {
+    if points.len() < 3 {
+        return None;
+    }
+    let c = covariance(points);
+    let smallest = symmetric_eigenvalues(c)
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    // The rows of C − λI span the plane across the eigenvector; their
+    // largest cross product is the eigenvector itself.
+    let rows = c.map(DVec3::from);
+    let rows = [0, 1, 2].map(|i| rows[i] - DVec3::AXES[i] * smallest);
+    [(0, 1), (0, 2), (1, 2)]
+        .map(|(a, b)| rows[a].cross(rows[b]))
+        .into_iter()
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+        .and_then(|v| v.try_normalize())
+        .map(|v| v.as_vec3())
+}
+
+/// Covariance matrix of the points about their mean.
+fn covariance(points: &[Vec3]) -> [[f64; 3]; 3] {
     let n = points.len().max(1) as f64;
     let mean = points.iter().map(|p| p.as_dvec3()).sum::<DVec3>() / n;
     let mut c = [[0.0f64; 3]; 3];
@@ -284,9 +314,7 @@ pub(crate) fn principal_spreads(points: &[Vec3]) -> [f64; 3] {
             }
         }
     }
-    let mut ev = symmetric_eigenvalues(c);
-    ev.sort_by(|a, b| b.total_cmp(a));
-    ev.map(|v| v.max(0.0).sqrt())
+    c
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix by cyclic Jacobi rotations.
@@ -461,5 +489,22 @@ mod tests {
         for (a, b) in ev.iter().zip([1.0, 3.0, 5.0]) {
             assert!((a - b).abs() < 1e-9, "{ev:?}");
         }
+    }
+
+    #[test]
+    fn a_tilted_band_of_points_has_its_axis_as_least_spread_axis() {
+        let axis = Vec3::new(0.3, -0.2, 1.0).normalize();
+        let e1 = axis.any_orthonormal_vector();
+        let e2 = axis.cross(e1);
+        let band: Vec<Vec3> = (0..200)
+            .map(|i| {
+                let a = i as f32 * 0.1;
+                let h = 0.01 * ((i % 7) as f32 - 3.0);
+                (e1 * a.cos() + e2 * a.sin()) * 0.3 + axis * h
+            })
+            .collect();
+        let found = least_spread_axis(&band).expect("axis of a band");
+        assert!(found.dot(axis).abs() > 0.999, "{found} vs {axis}");
+        assert_eq!(least_spread_axis(&band[..2]), None);
     }
 }

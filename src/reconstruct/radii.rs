@@ -238,33 +238,21 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
     };
     // Project slice points along the trunk axis onto the breast-height plane.
     let (lo, hi) = (base_z + params.slice_m.0, base_z + params.slice_m.1);
-    // Only points whose nearest internode is on the trunk: branches that
-    // leave the trunk inside the slice would pull the circle off.
-    let orders = skeleton.branch_orders();
-    let nearby: Vec<(Vec3, Vec3, bool)> = skeleton
-        .internodes()
-        .map(|(p, c)| {
-            (
-                skeleton.position(p),
-                skeleton.position(c),
-                orders[c.index()] == 0,
-            )
-        })
-        .filter(|(a, b, _)| a.z.min(b.z) <= hi + 0.5 && a.z.max(b.z) >= lo - 0.5)
-        .collect();
-    let on_trunk = |p: Vec3| {
-        let nearest = nearby
-            .iter()
-            .map(|&(a, b, trunk)| (point_segment_distance(p, a, b), trunk))
-            .min_by(|x, y| x.0.total_cmp(&y.0));
-        nearest.is_some_and(|(d, trunk)| trunk && d <= params.search_radius_m)
+    let slice = TrunkSlice {
+        skeleton,
+        z_range: (lo, hi),
+        axis: (axis_point, axis_dir),
+        search_radius_m: params.search_radius_m,
     };
-    let flat: Vec<Vec2> = points
-        .iter()
-        .copied()
-        .filter(|p| p.z >= lo && p.z <= hi && on_trunk(*p))
-        .map(|p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
-        .collect();
+    let mut flat = slice.points(points, Claim::NearestIsTrunk);
+    let mut claim_note = "";
+    if flat.len() < params.min_trunk_points {
+        // A sparse, occluded scan of a thick trunk leaves spurious branches
+        // on its bark that claim its points; the robust fit rejects the
+        // points of real branches instead.
+        flat = slice.points(points, Claim::NearTrunk);
+        claim_note = " (points near the trunk axis: other internodes claimed most)";
+    }
     if flat.len() < params.min_trunk_points {
         return estimate(format!(
             "only {} trunk points at {:.1}–{:.1} m (at least {} needed)",
@@ -314,13 +302,67 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
     }
     TrunkFit {
         reason: format!(
-            "circle fitted to {} of {} trunk points over {} of 12 sectors, RMS {:.1} mm",
+            "circle fitted to {} of {} trunk points over {} of 12 sectors, RMS {:.1} mm{claim_note}",
             inliers.len(),
             flat.len(),
             sectors,
             rms * 1000.0
         ),
         ..fitted
+    }
+}
+
+/// Which slice points count as trunk points.
+#[derive(Debug, Clone, Copy)]
+enum Claim {
+    /// Points whose nearest internode is on the trunk: branches that leave
+    /// the trunk inside the slice would pull the circle off.
+    NearestIsTrunk,
+    /// Points within the search radius of a trunk internode, whatever lies
+    /// nearer.
+    NearTrunk,
+}
+
+/// The breast-height slice of a skeleton's trunk.
+struct TrunkSlice<'a> {
+    skeleton: &'a Skeleton,
+    /// Heights of the slice, absolute.
+    z_range: (f32, f32),
+    /// A point on the trunk axis at breast height and its direction.
+    axis: (Vec3, Vec3),
+    search_radius_m: f32,
+}
+
+impl TrunkSlice<'_> {
+    /// The claimed trunk points of the slice, projected along the trunk axis
+    /// onto the breast-height plane.
+    fn points(&self, points: &[Vec3], claim: Claim) -> Vec<Vec2> {
+        let (lo, hi) = self.z_range;
+        let orders = self.skeleton.branch_orders();
+        let nearby: Vec<(Vec3, Vec3, bool)> = self
+            .skeleton
+            .internodes()
+            .map(|(p, c)| {
+                let trunk = orders[c.index()] == 0;
+                (self.skeleton.position(p), self.skeleton.position(c), trunk)
+            })
+            .filter(|(a, b, _)| a.z.min(b.z) <= hi + 0.5 && a.z.max(b.z) >= lo - 0.5)
+            .filter(|&(_, _, trunk)| trunk || matches!(claim, Claim::NearestIsTrunk))
+            .collect();
+        let on_trunk = |p: Vec3| {
+            let nearest = nearby
+                .iter()
+                .map(|&(a, b, trunk)| (point_segment_distance(p, a, b), trunk))
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            nearest.is_some_and(|(d, trunk)| trunk && d <= self.search_radius_m)
+        };
+        let (axis_point, axis_dir) = self.axis;
+        points
+            .iter()
+            .copied()
+            .filter(|p| p.z >= lo && p.z <= hi && on_trunk(*p))
+            .map(|p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
+            .collect()
     }
 }
 

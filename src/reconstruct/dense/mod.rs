@@ -18,7 +18,9 @@
 //!    sections, the centre of a fitted circle), with the arcs of one stem
 //!    section that ragged distance fronts split joined again, and the
 //!    pieces of a thick stem's ring joined through paths in the
-//!    neighbouring bins ([`Params::ring_window_bins`]);
+//!    neighbouring bins ([`Params::ring_window_bins`]), except the points
+//!    that lie well outside the circle fitted to the ring: a twig running
+//!    along the bark ([`Params::ring_outlier_m`]);
 //! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
 //!    (shorter than a few bins by subtree length, or, when enabled, bark
 //!    patches that never leave their stem), thick stems smoothed, Douglas–Peucker along chains,
@@ -81,6 +83,10 @@ pub struct Params {
     pub broken_ring_pieces: u32,
     /// …when its RMS spread reaches this, in metres.
     pub broken_ring_spread_m: f32,
+    /// Points of a thick ring more than this far outside the circle fitted
+    /// to it (across the stem's axis) are a twig running along the bark and
+    /// form their own cross-section (0: off).
+    pub ring_outlier_m: f32,
     /// Move thick sections' nodes to the centre of a circle fitted to their
     /// points (one-sided scans see arcs whose centroid is off the axis).
     pub centre_arcs: bool,
@@ -123,6 +129,7 @@ impl Default for Params {
             ring_spread_m: 0.11,
             broken_ring_pieces: 3,
             broken_ring_spread_m: 0.04,
+            ring_outlier_m: 0.02,
             centre_arcs: true,
             stem_stub_spreads: 0.0,
             smoothing_rounds: 3,
@@ -209,6 +216,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             thick_spread_m: params.ring_spread_m,
             broken_ring_pieces: params.broken_ring_pieces,
             broken_ring_spread_m: params.broken_ring_spread_m,
+            ring_outlier_m: params.ring_outlier_m,
         },
     );
     drop(g);

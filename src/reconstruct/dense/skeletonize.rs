@@ -11,9 +11,12 @@
 //! point, so the skeleton inherits the shortest-path tree's topology while
 //! its nodes sit inside the branches, not on the bark.
 
+use std::collections::HashMap;
+
 use glam::{DVec3, Vec2, Vec3};
 
 use super::graph::{Graph, UnionFind};
+use crate::reconstruct::least_spread_axis;
 use crate::reconstruct::radii::kasa_fit;
 use crate::skeleton::{Node, NodeId};
 
@@ -44,6 +47,9 @@ pub(super) struct Sectioning {
     pub(super) broken_ring_pieces: u32,
     /// See `broken_ring_pieces`, in metres.
     pub(super) broken_ring_spread_m: f32,
+    /// Points of a ring more than this far outside its fitted circle are a
+    /// twig along the stem, not part of the ring (0: keep them in it).
+    pub(super) ring_outlier_m: f32,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -158,21 +164,182 @@ fn join_thick_rings(
             pieces[wide.find(i) as usize] += 1;
         }
     }
+    let is_ring = |r: usize| {
+        let spread = stats.spread(r);
+        spread >= opts.thick_spread_m
+            || (pieces[r] >= opts.broken_ring_pieces && spread >= opts.broken_ring_spread_m)
+    };
+    let rings = if opts.ring_outlier_m > 0.0 {
+        fit_rings(points, bin, &mut wide, is_ring)
+    } else {
+        HashMap::new()
+    };
+    let mut outside = vec![false; points.len()];
+    let mut joined = uf.clone();
     let mut first = vec![u32::MAX; points.len()];
     for i in 0..points.len() as u32 {
         let r = wide.find(i) as usize;
-        let spread = stats.spread(r);
-        let broken_ring =
-            pieces[r] >= opts.broken_ring_pieces && spread >= opts.broken_ring_spread_m;
-        if spread < opts.thick_spread_m && !broken_ring {
+        if !is_ring(r) {
+            continue;
+        }
+        if let Some(ring) = rings.get(&(r as u32))
+            && ring.margin(points[i as usize]) > opts.ring_outlier_m.max(ring.tolerance_m)
+        {
+            outside[i as usize] = true;
             continue;
         }
         if first[r] == u32::MAX {
             first[r] = i;
         } else {
-            uf.union(first[r], i);
+            joined.union(first[r], i);
         }
     }
+    if rings.is_empty() {
+        *uf = joined;
+        return;
+    }
+    let mut split = split_off_outside(graph, &outside, &mut wide, &mut joined);
+    rejoin_wide_pieces(points, &outside, &first, &mut wide, &mut split);
+    *uf = split;
+}
+
+/// Widest (RMS spread, metres) group of outside points that stays apart
+/// from its ring as a twig. Wider groups are the first arc of a thick limb
+/// leaving its stem: their centroid lies on the limb's bark, so they stay in
+/// the ring until the limb parts as a whole.
+const TWIG_MAX_SPREAD_M: f32 = 0.03;
+
+/// Puts groups of outside points wider than [`TWIG_MAX_SPREAD_M`] back into
+/// their ring, whose first member is `first[ring]`.
+fn rejoin_wide_pieces(
+    points: &[Vec3],
+    outside: &[bool],
+    first: &[u32],
+    wide: &mut UnionFind,
+    split: &mut UnionFind,
+) {
+    let stats = Stats::gather(points, &vec![0.0; points.len()], split);
+    let group: Vec<u32> = (0..points.len() as u32).map(|i| split.find(i)).collect();
+    for i in 0..points.len() as u32 {
+        let ring_first = first[wide.find(i) as usize];
+        if outside[i as usize]
+            && ring_first != u32::MAX
+            && stats.spread(group[i as usize] as usize) > TWIG_MAX_SPREAD_M
+        {
+            split.union(ring_first, i);
+        }
+    }
+}
+
+/// The circle a thick section's points lie on, across the band's axis.
+struct Ring {
+    centre: Vec3,
+    axis: Vec3,
+    radius_m: f32,
+    /// How far outside the circle the ring's own points may lie, from
+    /// their median deviation.
+    tolerance_m: f32,
+}
+
+impl Ring {
+    /// How far `p` lies outside the ring, across the axis (negative inside).
+    fn margin(&self, p: Vec3) -> f32 {
+        let d = p - self.centre;
+        (d - self.axis * d.dot(self.axis)).length() - self.radius_m
+    }
+}
+
+/// Fits a [`Ring`] to each section (a root of `wide`) that `is_ring`
+/// accepts: the band's axis is the direction the points spread least along,
+/// and the circle is fitted (Kåsa) across it. Sections whose fit is
+/// implausible get none and stay joined whole.
+fn fit_rings(
+    points: &[Vec3],
+    bin: &[u32],
+    wide: &mut UnionFind,
+    is_ring: impl Fn(usize) -> bool,
+) -> HashMap<u32, Ring> {
+    let mut members: HashMap<u32, Vec<Vec3>> = HashMap::new();
+    for i in 0..points.len() as u32 {
+        let r = wide.find(i);
+        if bin[i as usize] > 0 && is_ring(r as usize) {
+            members.entry(r).or_default().push(points[i as usize]);
+        }
+    }
+    members
+        .into_iter()
+        .filter_map(|(r, pts)| Some((r, ring_of(&pts)?)))
+        .collect()
+}
+
+fn ring_of(pts: &[Vec3]) -> Option<Ring> {
+    if pts.len() < 12 {
+        return None;
+    }
+    let axis = least_spread_axis(pts)?;
+    let mean = pts.iter().copied().sum::<Vec3>() / pts.len() as f32;
+    let e1 = axis.any_orthonormal_vector();
+    let e2 = axis.cross(e1);
+    let flat: Vec<Vec2> = pts
+        .iter()
+        .map(|&p| Vec2::new((p - mean).dot(e1), (p - mean).dot(e2)))
+        .collect();
+    let circle = kasa_fit(&flat)?;
+    let extent = flat.iter().map(|q| q.length()).fold(0.0, f32::max);
+    if !(circle.radius.is_finite() && circle.radius < 2.0 * extent) {
+        return None;
+    }
+    let mut ring = Ring {
+        centre: mean + e1 * circle.centre.x + e2 * circle.centre.y,
+        axis,
+        radius_m: circle.radius,
+        tolerance_m: 0.0,
+    };
+    let mut deviation: Vec<f32> = pts.iter().map(|&p| ring.margin(p).abs()).collect();
+    let mid = deviation.len() / 2;
+    ring.tolerance_m =
+        RING_TOLERANCE_MADS * *deviation.select_nth_unstable_by(mid, f32::total_cmp).1;
+    Some(ring)
+}
+
+/// How many median deviations from its circle a point of a ring may lie
+/// outside it: an oblique or oval band deviates along its whole length, a
+/// twig beside a round stem stands out.
+const RING_TOLERANCE_MADS: f32 = 3.0;
+
+/// Rebuilds the sections with the points marked `outside` their ring taken
+/// out of it: they form sections of their own, joined by graph edges among
+/// themselves within their bin's section. A twig that runs along its stem's
+/// bark leaves the stem's ring here instead of bending its node.
+fn split_off_outside(
+    graph: &Graph,
+    outside: &[bool],
+    wide: &mut UnionFind,
+    joined: &mut UnionFind,
+) -> UnionFind {
+    let n = outside.len();
+    let mut split = UnionFind::new(n);
+    // First non-outside member of each joined section: outside points may
+    // share a fine piece with the bark, so they must not be its root.
+    let mut kept = vec![u32::MAX; n];
+    for i in 0..n as u32 {
+        if outside[i as usize] {
+            let r = wide.find(i);
+            for &(w, _) in graph.neighbours(i as usize) {
+                if outside[w as usize] && wide.find(w) == r {
+                    split.union(i, w);
+                }
+            }
+        } else {
+            let r = joined.find(i) as usize;
+            if kept[r] == u32::MAX {
+                kept[r] = i;
+            } else {
+                split.union(kept[r], i);
+            }
+        }
+    }
+    split
 }
 
 /// Joins the points of each bin that graph edges connect through points of
@@ -382,6 +549,7 @@ mod tests {
                 thick_spread_m: 0.0,
                 broken_ring_pieces: u32::MAX,
                 broken_ring_spread_m: 0.0,
+                ring_outlier_m: 0.0,
             },
         );
         assert_eq!(s.nodes.len(), 2);
@@ -394,16 +562,23 @@ mod tests {
     /// a thin, gappy ring. Joined through the neighbouring bins it gives one
     /// node per bin on the axis; without the window, pieces of bark do.
     fn stem_sections(window_bins: u32) -> Sections {
+        stem_with_twig(window_bins, 0.02, &[])
+    }
+
+    /// [`stem_sections`] with `twig` points added and the ring outlier
+    /// margin set.
+    fn stem_with_twig(window_bins: u32, ring_outlier_m: f32, twig: &[Vec3]) -> Sections {
         use super::super::graph::knn_edges;
         use crate::spatial::PointIndex;
         // A low-discrepancy (R2) sequence over the bark: even, not a lattice.
-        let pts: Vec<Vec3> = (0..3000)
+        let mut pts: Vec<Vec3> = (0..3000)
             .map(|k| {
                 let a = (k as f32 * 0.754_877_7).fract() * std::f32::consts::TAU;
                 let z = (k as f32 * 0.569_840_3).fract() * 1.5;
                 Vec3::new(0.4 * a.cos(), 0.4 * a.sin(), z)
             })
             .collect();
+        pts.extend_from_slice(twig);
         let index = PointIndex::new(&pts);
         let g = Graph::from_edges(pts.len(), &knn_edges(&pts, &index, 6, 1.0));
         let sources: Vec<u32> = (0..pts.len() as u32)
@@ -424,6 +599,7 @@ mod tests {
                 thick_spread_m: 0.11,
                 broken_ring_pieces: 3,
                 broken_ring_spread_m: 0.04,
+                ring_outlier_m,
             },
         )
     }
@@ -445,5 +621,33 @@ mod tests {
         // The topmost, partial band may leave a piece.
         assert!(off_axis(&rings) <= 2, "{} off-axis nodes", off_axis(&rings));
         assert!(rings.nodes.len() <= 60, "{} nodes", rings.nodes.len());
+    }
+
+    /// A 1 cm twig running up the 0.4 m stem 4 cm outside its bark, close
+    /// enough for nearest-neighbour edges to tie it to the bark: split off
+    /// its ring, it keeps its own nodes along its axis; left in the ring, it
+    /// only drags the stem's nodes sideways.
+    #[test]
+    fn a_twig_along_the_bark_leaves_the_stems_ring() {
+        let twig: Vec<Vec3> = (0..560)
+            .map(|k| {
+                let a = (k % 4) as f32 * std::f32::consts::FRAC_PI_2;
+                let z = 0.05 + (k / 4) as f32 * 0.01;
+                Vec3::new(0.45 + 0.01 * a.cos(), 0.01 * a.sin(), z)
+            })
+            .collect();
+        let on_twig = |s: &Sections| {
+            s.nodes
+                .iter()
+                .filter(|n| {
+                    let p = n.position;
+                    (0.3..1.3).contains(&p.z) && p.truncate().distance(Vec2::new(0.45, 0.0)) < 0.03
+                })
+                .count()
+        };
+        let split = stem_with_twig(1, 0.02, &twig);
+        assert!(on_twig(&split) >= 20, "{} twig nodes", on_twig(&split));
+        let kept = stem_with_twig(1, 0.0, &twig);
+        assert!(on_twig(&kept) <= 3, "{} twig nodes", on_twig(&kept));
     }
 }
