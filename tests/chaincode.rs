@@ -352,3 +352,49 @@ fn crate_error_wraps_chain_errors() {
     let err: silva::Error = ChainError::BadMagic.into();
     assert!(err.to_string().contains("SLVC"));
 }
+
+/// Fuzz finding (`fuzz/README.md`, target `chaincode`): the plain form
+/// accepted a NaN resolution, so a decoded code did not equal itself after
+/// a round trip. Every header field is now checked.
+#[test]
+fn non_positive_resolution_in_the_header_is_malformed() {
+    let s = random_skeleton(7, 12);
+    let code = encode(&s, &ChainOptions::default()).unwrap();
+    let limits = Limits::default();
+    let plain = code.to_bytes();
+    // magic 4, version, kind, flags, voxel size 8, radius step 4: resolution at 19.
+    assert_eq!(plain[6] & 2, 2, "the resolution is present");
+    for r in [f32::NAN, f32::INFINITY, 0.0, -5.0] {
+        let mut bytes = plain.clone();
+        bytes[19..23].copy_from_slice(&r.to_le_bytes());
+        let err = ChainCode::from_bytes(&bytes, &limits).unwrap_err();
+        assert_eq!(
+            err,
+            ChainError::Malformed("resolution is not positive"),
+            "r = {r}"
+        );
+    }
+    let mut header = code.header().clone();
+    header.resolution = Some(f32::NAN);
+    let symbols = code.symbols().to_vec();
+    assert!(ChainCode::new(header, symbols, code.radii_q().to_vec()).is_err());
+}
+
+/// Fuzz finding (target `chaincode`): the plain form's 32-bit radii were
+/// accepted above the 2^30 the compressed forms carry, so such a code could
+/// be compressed but not decompressed.
+#[test]
+fn radii_beyond_the_compressed_range_are_malformed() {
+    let root_only = Skeleton::new(chaincode_support::anchor(), 0.3);
+    let code = encode(&root_only, &ChainOptions::default()).unwrap();
+    let mut bytes = code.to_bytes();
+    let width = 32 - code.radii_q()[0].leading_zeros();
+    bytes.truncate(bytes.len() - 1 - (width as usize).div_ceil(8));
+    bytes.push(32);
+    bytes.extend_from_slice(&(1u32 << 31).to_be_bytes());
+    let err = ChainCode::from_bytes(&bytes, &Limits::default()).unwrap_err();
+    assert_eq!(err, ChainError::Malformed("radius out of range"));
+    let header = code.header().clone();
+    assert!(ChainCode::new(header, vec![], vec![(1 << 30) + 1]).is_err());
+    assert!(ChainCode::new(code.header().clone(), vec![], vec![1 << 30]).is_ok());
+}

@@ -326,3 +326,39 @@ fn weber_penn_trees_within_bound() {
         }
     }
 }
+
+/// Fuzz finding (`fuzz/README.md`, target `lsjson`): numbers with more
+/// digits than `f64` holds were parsed off by one unit in the last place
+/// (serde_json's default float parser), so a document printed and parsed
+/// back differed from the one read. Other writers (Python's `json`) print
+/// 17 significant digits; every number must be read correctly rounded.
+#[test]
+fn long_numbers_survive_print_and_parse() {
+    let text = doc(0, "F", "")
+        .replace("[10,20,30]", "[120000.0,480000.0,155555555555555555555.0]")
+        .replace(r#""bound_m":0.001"#, r#""bound_m":0.02875e79"#);
+    let ls = parse(&text).unwrap();
+    assert_eq!(ls.anchor().origin.z, 155_555_555_555_555_555_555.0);
+    assert_eq!(ls.error().bound_m, 0.02875e79);
+    let again = parse(&ls.to_json()).unwrap();
+    assert!(again == ls, "print/parse round trip");
+}
+
+/// Fuzz finding (target `lsjson`): a parameter as large as 5e50 or as small
+/// as 1e-300 was printed in full, longer than the 40 characters the reader
+/// takes, so the writer produced text its own reader refused. Such numbers
+/// are now printed with an exponent.
+#[test]
+fn extreme_parameters_print_within_the_readers_limit() {
+    let text = doc(
+        1,
+        "F(10)C",
+        r#""G":"F(.5095629702341211e51)","C":"+(1e-300)F(-2.5e-320)""#,
+    );
+    let ls = parse(&text).unwrap();
+    let printed = ls.to_json();
+    assert!(printed.contains("F(5.095629702341211e50)"), "{printed}");
+    let again = parse(&printed).unwrap();
+    assert!(again == ls, "print/parse round trip: {printed}");
+    assert_eq!(decode_text(&printed).unwrap(), decode_text(&text).unwrap());
+}

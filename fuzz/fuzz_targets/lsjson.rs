@@ -1,8 +1,7 @@
-//! Fuzzes the LsJSON reader (parse, rule expansion, turtle): any input must
-//! give a skeleton or a typed error, never a panic, a hang or an unbounded
-//! allocation.
-//!
-//! `cd fuzz && cargo +nightly fuzz run -s none lsjson corpus/lsjson -- -max_total_time=300 -rss_limit_mb=2048 -timeout=10`
+//! Fuzzes the LsJSON reader (parse, bounded rule expansion, turtle): any
+//! input must give a skeleton or a typed error, never a panic, a hang or an
+//! unbounded allocation. An accepted document must print and parse back to
+//! itself, and decode to the same skeleton.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -18,7 +17,17 @@ fuzz_target!(|data: &[u8]| {
         max_nodes: 50_000,
         ..Limits::default()
     };
-    if let Ok(ls) = LsJson::parse(text, &limits) {
-        let _ = decode(&ls, &limits);
+    let Ok(ls) = LsJson::parse(text, &limits) else {
+        return;
+    };
+    let printed = ls.to_json();
+    let reparsed = LsJson::parse(&printed, &Limits::default()).expect("printed LsJSON parses");
+    assert!(reparsed == ls, "print/parse round trip: {printed}");
+    let decoded = decode(&ls, &limits);
+    let again = decode(&reparsed, &limits);
+    match (&decoded, &again) {
+        (Ok(a), Ok(b)) => assert_eq!(a, b, "the reprinted document decodes alike"),
+        (Err(_), Err(_)) => {}
+        _ => panic!("decoding differs after printing: {decoded:?} vs {again:?}"),
     }
 });

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use silva::Skeleton;
-use silva::encode::chaincode::{self, ChainCode, ChainOptions, Resolution};
-use silva::encode::lsystem::{self, LsJson, LsOptions};
+use silva::encode::chaincode::{self, ChainOptions, Resolution};
+use silva::encode::lsystem::{self, LsOptions};
 
 use super::outputs::{Outputs, write};
 
@@ -116,23 +116,9 @@ pub fn export(args: ExportArgs) -> anyhow::Result<()> {
         .write(&skeleton, args.species, serde_json::Map::new())
 }
 
-/// Reads a skeleton from any of its stored forms, recognised by content.
+/// Reads a skeleton from any of its stored forms, recognised by content
+/// ([`silva::encode::decode_stored`]).
 pub fn load_skeleton(path: &Path) -> anyhow::Result<Skeleton> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let name = path.display();
-    if chaincode::is_chain_code(&bytes) {
-        let limits = chaincode::Limits::default();
-        let code = ChainCode::decompress(&bytes, &limits)
-            .or_else(|_| ChainCode::from_bytes(&bytes, &limits))
-            .with_context(|| format!("{name}: chain code"))?;
-        return chaincode::decode(&code).with_context(|| format!("{name}: chain code"));
-    }
-    let text = std::str::from_utf8(&bytes)
-        .with_context(|| format!("{name}: neither a chain code nor JSON text"))?;
-    if text.contains("\"silva-skeleton\"") {
-        return Skeleton::from_json(text).with_context(|| format!("{name}"));
-    }
-    let limits = lsystem::Limits::default();
-    let ls = LsJson::parse(text, &limits).with_context(|| format!("{name}"))?;
-    lsystem::decode(&ls, &limits).with_context(|| format!("{name}"))
+    silva::encode::decode_stored(&bytes).with_context(|| format!("{}", path.display()))
 }

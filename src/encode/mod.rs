@@ -1,8 +1,36 @@
 //! Compact skeleton encodings (issue 4).
 //!
-//! Will hold the L-system writer/reader (LsJSON, lsystem-from-adtree-skeletons
+//! The L-system writer/reader (LsJSON, lsystem-from-adtree-skeletons
 //! §3.2–3.3) and the DBF6 chain code with LOD reduction and interpolative
-//! compression (chain-code-tree-compression-lod §3). No IO.
+//! compression (chain-code-tree-compression-lod §3), and [`decode_stored`],
+//! which reads any stored form of a skeleton recognised by content. No IO.
 
 pub mod chaincode;
 pub mod lsystem;
+
+use crate::Skeleton;
+
+/// Reads a skeleton from any of its stored forms, recognised by content (as
+/// `silva decode` and `silva export` do): a chain code starts with the `SLVC`
+/// magic (either byte form), a silva skeleton JSON names the format
+/// `"silva-skeleton"`, any other text is LsJSON. Every reader runs with its
+/// default [`chaincode::Limits`] / [`lsystem::Limits`], so hostile bytes give
+/// a typed error, never an unbounded expansion.
+pub fn decode_stored(bytes: &[u8]) -> crate::Result<Skeleton> {
+    if chaincode::is_chain_code(bytes) {
+        let limits = chaincode::Limits::default();
+        let code = chaincode::ChainCode::decompress(bytes, &limits)
+            .or_else(|_| chaincode::ChainCode::from_bytes(bytes, &limits))?;
+        return Ok(chaincode::decode(&code)?);
+    }
+    let text = std::str::from_utf8(bytes).map_err(|_| lsystem::LsError::Invalid {
+        field: "document",
+        reason: "is neither a chain code nor UTF-8 text",
+    })?;
+    if text.contains("\"silva-skeleton\"") {
+        return Ok(Skeleton::from_json(text)?);
+    }
+    let limits = lsystem::Limits::default();
+    let ls = lsystem::LsJson::parse(text, &limits)?;
+    Ok(lsystem::decode(&ls, &limits)?)
+}

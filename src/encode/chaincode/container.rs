@@ -109,15 +109,22 @@ impl ChainCode {
     /// string form ([`ChainCode::compress_single_string`], kind 1).
     pub fn compress(&self) -> Vec<u8> {
         let single = self.compress_single_string();
-        let split = split::compress_payload(self).map(|payload| {
-            let mut out = self.header_bytes(KIND_SPLIT);
-            out.extend(payload);
-            out
-        });
-        match split {
+        match self.compress_split() {
             Some(split) if split.len() < single.len() => split,
             _ => single,
         }
+    }
+
+    /// Kind 2, the split streams (`split.rs`), or `None` if some internode
+    /// writes its moves in another order than the encoder's.
+    /// [`ChainCode::decompress`] reads it; [`ChainCode::compress`] uses it
+    /// when it is shorter than kind 1.
+    pub fn compress_split(&self) -> Option<Vec<u8>> {
+        split::compress_payload(self).map(|payload| {
+            let mut out = self.header_bytes(KIND_SPLIT);
+            out.extend(payload);
+            out
+        })
     }
 
     /// Kind 1, the paper's form (§3.3): the whole symbol string through BWT,

@@ -203,6 +203,9 @@ impl ChainCode {
     ) -> Result<Self, ChainError> {
         header.validate()?;
         lod::scan(&symbols, radii_q.len())?;
+        if radii_q.iter().any(|&q| !radii::in_range(q)) {
+            return Err(ChainError::Malformed("radius out of range"));
+        }
         Ok(Self {
             header,
             symbols,
@@ -244,11 +247,14 @@ impl ChainCode {
 }
 
 impl ChainHeader {
-    /// Checks that the voxel size and radius step are positive and finite and
-    /// that the root and anchor are finite.
+    /// Checks that the voxel size, radius step and resolution (if any) are
+    /// positive and finite and that the root and anchor are finite.
     pub fn validate(&self) -> Result<(), ChainError> {
         if !(self.voxel_size_m.is_finite() && self.voxel_size_m > 0.0) {
             return Err(ChainError::Malformed("voxel size is not positive"));
+        }
+        if self.resolution.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
+            return Err(ChainError::Malformed("resolution is not positive"));
         }
         let step = self.radius_step_m;
         if !(step.is_finite() && step > 0.0) {

@@ -17,6 +17,11 @@ use super::ChainError;
 const MAX_Q: u64 = 1 << 30;
 
 /// `round(radius_m / step_m)`, or an error if it does not fit.
+/// True if a quantised radius is within the range the byte forms carry.
+pub(crate) fn in_range(q: u32) -> bool {
+    u64::from(q) <= MAX_Q
+}
+
 pub(crate) fn quantise(radius_m: f32, step_m: f32) -> Result<u32, ChainError> {
     let q = (f64::from(radius_m) / f64::from(step_m)).round();
     if q.is_finite() && (0.0..=MAX_Q as f64).contains(&q) {

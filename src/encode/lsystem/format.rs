@@ -344,10 +344,15 @@ pub(crate) fn print(symbols: &[Symbol]) -> String {
 }
 
 /// Shortest decimal that parses back to exactly `v`, without a leading zero
-/// before the point (`.25`, `-.5`).
+/// before the point (`.25`, `-.5`); in exponent form (`5.1e50`) when the
+/// plain form would be longer than the reader takes ([`MAX_NUMBER_CHARS`]).
 pub(crate) fn push_number(out: &mut String, v: f64) {
     let mut text = String::new();
     write!(text, "{v}").expect("writing to a String cannot fail");
+    if text.len() > MAX_NUMBER_CHARS {
+        text.clear();
+        write!(text, "{v:e}").expect("writing to a String cannot fail");
+    }
     let trimmed = if let Some(rest) = text.strip_prefix("0.") {
         format!(".{rest}")
     } else if let Some(rest) = text.strip_prefix("-0.") {

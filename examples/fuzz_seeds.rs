@@ -1,0 +1,115 @@
+//! Writes a handful of small, valid stored forms of synthetic skeletons as
+//! seed corpora for the decoder fuzz targets (`fuzz/README.md`):
+//! `cargo run --example fuzz_seeds -- fuzz/corpus`.
+//!
+//! Per skeleton: the plain chain code (`chaincode/`), both compressed kinds
+//! (`chaincode_stream/`), LsJSON with and without tip rules (`lsjson/`), and
+//! one of each stored form for the content sniffing (`decode_stored/`).
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, Vec3};
+use silva::encode::chaincode::{self, ChainCode, ChainOptions};
+use silva::encode::lsystem::{self, LsOptions};
+use silva::synth::{Species, TreeParams, generate};
+use silva::{Anchor, NodeId, Skeleton};
+
+/// A fork with a thin lateral, as in the chain code module's example.
+fn fork() -> Skeleton {
+    let mut tree = Skeleton::new(Anchor::at(DVec3::new(155_000.0, 463_000.0, 0.0)), 0.30);
+    let a = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.25);
+    tree.add_child(a, Vec3::new(0.1, 0.0, 2.0), 0.20);
+    tree.add_child(a, Vec3::new(0.8, 0.0, 1.6), 0.05);
+    tree
+}
+
+/// A three-way fork and a zero-length internode, with a CRS.
+fn trifurcation() -> Skeleton {
+    let mut anchor = Anchor::at(DVec3::new(85_000.0, 446_000.0, 2.5));
+    anchor.crs = Some("EPSG:28992".into());
+    let mut tree = Skeleton::new(anchor, 0.2);
+    let a = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.5), 0.15);
+    for (x, y) in [(0.6, 0.0), (-0.3, 0.5), (-0.3, -0.5)] {
+        let b = tree.add_child(a, Vec3::new(x, y, 2.2), 0.06);
+        tree.add_child(b, Vec3::new(x * 1.5, y * 1.5, 2.9), 0.03);
+    }
+    let tip = tree.add_child(a, Vec3::new(0.0, 0.0, 1.5), 0.1);
+    tree.add_child(tip, Vec3::new(0.0, 0.1, 2.5), 0.05);
+    tree
+}
+
+/// A Weber–Penn birch without its laterals thinner than `threshold_m`: a
+/// real tree's irregular geometry in a few dozen internodes.
+fn pruned_birch(seed: u64, threshold_m: f32) -> Skeleton {
+    let anchor = Anchor::at(DVec3::new(120_000.0, 480_000.0, 1.0));
+    let tree = generate(&TreeParams::preset(Species::Birch), seed, anchor);
+    chaincode::prune_like_lod(&tree, threshold_m)
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) {
+    std::fs::create_dir_all(dir).expect("corpus directory");
+    std::fs::write(dir.join(name), bytes).expect("seed file");
+}
+
+fn main() {
+    let root = PathBuf::from(std::env::args().nth(1).unwrap_or("fuzz/corpus".into()));
+    let trees = [
+        ("fork", fork()),
+        ("trifurcation", trifurcation()),
+        ("birch", pruned_birch(1, 0.06)),
+        ("birch-dense", pruned_birch(2, 0.03)),
+    ];
+    for (name, tree) in &trees {
+        let code = chaincode::encode(tree, &ChainOptions::default()).expect("encodable");
+        let plain = code.to_bytes();
+        let split = code.compress_split().expect("the encoder's move order");
+        let single = code.compress_single_string();
+        let lod = chaincode::reduce_lod(&code, 0.1).to_bytes();
+        write(&root.join("chaincode"), &format!("{name}.bin"), &plain);
+        write(&root.join("chaincode"), &format!("{name}-lod.bin"), &lod);
+        write(
+            &root.join("chaincode_stream"),
+            &format!("{name}.k2"),
+            &split,
+        );
+        write(
+            &root.join("chaincode_stream"),
+            &format!("{name}.k1"),
+            &single,
+        );
+
+        let ls = lsystem::encode(tree, &LsOptions::default()).to_json();
+        let rules = LsOptions {
+            generalise_tips: Some(2),
+            tolerance_m: 0.01,
+            ..LsOptions::default()
+        };
+        let ls_rules = lsystem::encode(tree, &rules).to_json();
+        write(&root.join("lsjson"), &format!("{name}.json"), ls.as_bytes());
+        write(
+            &root.join("lsjson"),
+            &format!("{name}-rules.json"),
+            ls_rules.as_bytes(),
+        );
+
+        let stored = root.join("decode_stored");
+        write(&stored, &format!("{name}.cc"), &split);
+        write(&stored, &format!("{name}.ls.json"), ls.as_bytes());
+        write(
+            &stored,
+            &format!("{name}.skeleton.json"),
+            tree.to_json().as_bytes(),
+        );
+        let sizes = [plain.len(), split.len(), ls.len(), ls_rules.len()];
+        println!(
+            "{name}: {} nodes, plain/compressed/lsjson/lsjson-rules bytes {sizes:?}",
+            tree.len()
+        );
+    }
+    // The decoders must accept what they are seeded with.
+    for (_, tree) in &trees {
+        let code = chaincode::encode(tree, &ChainOptions::default()).expect("encodable");
+        let back = ChainCode::decompress(&code.compress(), &chaincode::Limits::default());
+        assert_eq!(back.as_ref(), Ok(&code));
+    }
+}

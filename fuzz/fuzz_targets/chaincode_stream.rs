@@ -1,0 +1,34 @@
+//! Fuzzes the compressed chain code decoder (`ChainCode::decompress`): the
+//! single-string form (kind 1: BWT, MTF, interpolative code) and the split
+//! streams (kind 2), then the raw code decoder on whatever it accepts. Any
+//! input must give Ok or a typed error, never a panic, a hang or an
+//! unbounded allocation; an accepted code must survive every byte form
+//! unchanged.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use silva::encode::chaincode::{ChainCode, Limits, decode, reduce_lod};
+
+fuzz_target!(|data: &[u8]| {
+    // Small limits keep each run fast; the limits themselves are under test.
+    let limits = Limits {
+        max_symbols: 1 << 18,
+        max_nodes: 1 << 16,
+        max_crs_bytes: 64,
+    };
+    // Most random inputs fail at the magic; also try them after the magic.
+    let mut framed = b"SLVC\x01".to_vec();
+    framed.extend_from_slice(data);
+    for bytes in [data, &framed[..]] {
+        if let Ok(code) = ChainCode::decompress(bytes, &limits) {
+            let plain = ChainCode::from_bytes(&code.to_bytes(), &limits);
+            assert_eq!(plain.as_ref(), Ok(&code), "plain form round trip");
+            let again = ChainCode::decompress(&code.compress(), &limits);
+            assert_eq!(again.as_ref(), Ok(&code), "compressed round trip");
+            if let Ok(skeleton) = decode(&code) {
+                assert_eq!(skeleton.len(), code.radii_q().len(), "one node per radius");
+            }
+            let _ = decode(&reduce_lod(&code, 0.05));
+        }
+    }
+});
