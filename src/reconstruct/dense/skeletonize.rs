@@ -44,6 +44,14 @@ pub(super) struct Sectioning {
     pub(super) broken_ring_pieces: u32,
     /// See `broken_ring_pieces`, in metres.
     pub(super) broken_ring_spread_m: f32,
+    /// Graph edges longer than this do not join the points of a bin into one
+    /// section, in metres: in a sparsely sampled crown the nearest-neighbour
+    /// edges also link neighbouring twigs, whose shared section would put
+    /// the node between them.
+    pub(super) max_link_m: f32,
+    /// Graph edges longer than this do not join a thick stem's ring through
+    /// the neighbouring bins, in metres (for the same reason).
+    pub(super) max_ring_link_m: f32,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -67,7 +75,7 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    join_within_windows(graph, &bin, 0, &mut uf);
+    join_within_windows(graph, &bin, 0, opts.max_link_m, &mut uf);
     if opts.window_bins > 0 {
         join_thick_rings(points, graph, dist, &bin, opts, &mut uf);
     }
@@ -149,7 +157,13 @@ fn join_thick_rings(
     uf: &mut UnionFind,
 ) {
     let mut wide = uf.clone();
-    join_within_windows(graph, bin, opts.window_bins, &mut wide);
+    join_within_windows(
+        graph,
+        bin,
+        opts.window_bins,
+        opts.max_ring_link_m,
+        &mut wide,
+    );
     let stats = Stats::gather(points, dist, &mut wide);
     // Fine pieces per joined section: many pieces mark a broken ring.
     let mut pieces = vec![0u32; points.len()];
@@ -175,8 +189,9 @@ fn join_thick_rings(
     }
 }
 
-/// Joins the points of each bin that graph edges connect through points of
-/// the neighbouring bins, `window` bins either way.
+/// Joins the points of each bin that graph edges no longer than
+/// `max_link_m` connect through points of the neighbouring bins, `window`
+/// bins either way.
 ///
 /// A bin of a thick stem is a thin band around the bark whose circumference
 /// is long compared with the point spacing: the nearest-neighbour edges
@@ -185,7 +200,13 @@ fn join_thick_rings(
 /// ring, while a twig still parts from its stem once no path within the
 /// window joins them: forks are found at most `window` bins late, and the
 /// nodes keep the fine bins' resolution along the branches.
-fn join_within_windows(graph: &Graph, bin: &[u32], window: u32, uf: &mut UnionFind) {
+fn join_within_windows(
+    graph: &Graph,
+    bin: &[u32],
+    window: u32,
+    max_link_m: f32,
+    uf: &mut UnionFind,
+) {
     let n = bin.len();
     let mut by_bin: Vec<u32> = (0..n as u32).collect();
     by_bin.sort_unstable_by_key(|&v| bin[v as usize]);
@@ -208,9 +229,9 @@ fn join_within_windows(graph: &Graph, bin: &[u32], window: u32, uf: &mut UnionFi
         }
         let mut window_uf = UnionFind::new(members.len());
         for (k, &v) in members.iter().enumerate() {
-            for &(w, _) in graph.neighbours(v as usize) {
+            for &(w, len) in graph.neighbours(v as usize) {
                 let lw = local[w as usize];
-                if lw != u32::MAX {
+                if lw != u32::MAX && len <= max_link_m {
                     window_uf.union(k as u32, lw);
                 }
             }
@@ -382,6 +403,8 @@ mod tests {
                 thick_spread_m: 0.0,
                 broken_ring_pieces: u32::MAX,
                 broken_ring_spread_m: 0.0,
+                max_link_m: f32::INFINITY,
+                max_ring_link_m: f32::INFINITY,
             },
         );
         assert_eq!(s.nodes.len(), 2);
@@ -424,6 +447,8 @@ mod tests {
                 thick_spread_m: 0.11,
                 broken_ring_pieces: 3,
                 broken_ring_spread_m: 0.04,
+                max_link_m: f32::INFINITY,
+                max_ring_link_m: f32::INFINITY,
             },
         )
     }
