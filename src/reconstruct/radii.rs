@@ -45,6 +45,10 @@ pub struct Params {
     pub measured_radii: bool,
     /// Fewest points around an internode for a measured radius.
     pub min_section_points: usize,
+    /// With a fitted trunk, measured radii are capped at this many times the
+    /// pipe model's, so that leaves caught between branches cannot inflate
+    /// a twig far beyond what the tree's tips allow.
+    pub max_measured_over_pipe: f32,
 }
 
 impl Default for Params {
@@ -57,7 +61,8 @@ impl Default for Params {
             min_sectors: 4,
             min_radius_m: 0.002,
             measured_radii: true,
-            min_section_points: 8,
+            min_section_points: 3,
+            max_measured_over_pipe: 10.0,
         }
     }
 }
@@ -134,7 +139,12 @@ pub fn assign_radii(
     pipe_model(skeleton, reference, trunk.radius_m, params.min_radius_m);
     if params.measured_radii {
         let measured = measured_radii(skeleton, &tree.points, params.min_section_points);
-        blend_measured(skeleton, &measured, trunk.method == DbhMethod::Fitted);
+        blend_measured(
+            skeleton,
+            &measured,
+            trunk.method == DbhMethod::Fitted,
+            params.max_measured_over_pipe,
+        );
     }
     trunk
 }
@@ -179,14 +189,19 @@ fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Ve
 /// measurement, smooths them along the tree (each node averaged with its
 /// parent and main child), and restores the rule that radii never grow
 /// towards the tips. With a fitted trunk the measured values are capped at
-/// twice the pipe model, so that leaves caught between branches cannot
+/// `max_over_pipe` times the pipe model, so that leaves caught between branches cannot
 /// inflate a twig.
-fn blend_measured(skeleton: &mut Skeleton, measured: &[Option<f32>], fitted_trunk: bool) {
+fn blend_measured(
+    skeleton: &mut Skeleton,
+    measured: &[Option<f32>],
+    fitted_trunk: bool,
+    max_over_pipe: f32,
+) {
     let pipe: Vec<f32> = skeleton.ids().map(|id| skeleton.radius(id)).collect();
     let raw: Vec<f32> = skeleton
         .ids()
         .map(|id| match measured[id.index()] {
-            Some(m) if fitted_trunk => m.min(2.0 * pipe[id.index()]),
+            Some(m) if fitted_trunk => m.min(max_over_pipe * pipe[id.index()]),
             Some(m) => m,
             None => pipe[id.index()],
         })

@@ -87,6 +87,15 @@ pub struct Params {
     /// to it (across the stem's axis) are a twig running along the bark and
     /// form their own cross-section (0: off).
     pub ring_outlier_m: f32,
+    /// Graph edges longer than this many median point spacings do not join
+    /// the points of a bin into one cross-section: in a sparsely sampled
+    /// crown the `k` nearest neighbours reach across to the next twig, and
+    /// a section holding both would put the node between them, off both.
+    pub section_link_spacings: f32,
+    /// The same limit for the edges that join a thick stem's ring through
+    /// the neighbouring bins ([`Params::ring_window_bins`]); a ring's band
+    /// needs longer links than a single bin, whose pieces the window joins.
+    pub ring_link_spacings: f32,
     /// Move thick sections' nodes to the centre of a circle fitted to their
     /// points (one-sided scans see arcs whose centroid is off the axis).
     pub centre_arcs: bool,
@@ -127,9 +136,11 @@ impl Default for Params {
             merge_overlapping_arcs: true,
             ring_window_bins: 1,
             ring_spread_m: 0.11,
-            broken_ring_pieces: 3,
+            broken_ring_pieces: 4,
             broken_ring_spread_m: 0.04,
             ring_outlier_m: 0.02,
+            section_link_spacings: 3.0,
+            ring_link_spacings: 4.0,
             centre_arcs: true,
             stem_stub_spreads: 0.0,
             smoothing_rounds: 3,
@@ -217,6 +228,8 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             broken_ring_pieces: params.broken_ring_pieces,
             broken_ring_spread_m: params.broken_ring_spread_m,
             ring_outlier_m: params.ring_outlier_m,
+            max_link_m: params.section_link_spacings * spacing,
+            max_ring_link_m: params.ring_link_spacings * spacing,
         },
     );
     drop(g);

@@ -50,6 +50,14 @@ pub(super) struct Sectioning {
     /// Points of a ring more than this far outside its fitted circle are a
     /// twig along the stem, not part of the ring (0: keep them in it).
     pub(super) ring_outlier_m: f32,
+    /// Graph edges longer than this do not join the points of a bin into one
+    /// section, in metres: in a sparsely sampled crown the nearest-neighbour
+    /// edges also link neighbouring twigs, whose shared section would put
+    /// the node between them.
+    pub(super) max_link_m: f32,
+    /// Graph edges longer than this do not join a thick stem's ring through
+    /// the neighbouring bins, in metres (for the same reason).
+    pub(super) max_ring_link_m: f32,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -73,7 +81,7 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    join_within_windows(graph, &bin, 0, &mut uf);
+    join_within_windows(graph, &bin, 0, opts.max_link_m, &mut uf);
     if opts.window_bins > 0 {
         join_thick_rings(points, graph, dist, &bin, opts, &mut uf);
     }
@@ -155,7 +163,13 @@ fn join_thick_rings(
     uf: &mut UnionFind,
 ) {
     let mut wide = uf.clone();
-    join_within_windows(graph, bin, opts.window_bins, &mut wide);
+    join_within_windows(
+        graph,
+        bin,
+        opts.window_bins,
+        opts.max_ring_link_m,
+        &mut wide,
+    );
     let stats = Stats::gather(points, dist, &mut wide);
     // Fine pieces per joined section: many pieces mark a broken ring.
     let mut pieces = vec![0u32; points.len()];
@@ -198,7 +212,7 @@ fn join_thick_rings(
         *uf = joined;
         return;
     }
-    let mut split = split_off_outside(graph, &outside, &mut wide, &mut joined);
+    let mut split = split_off_outside(graph, &outside, opts.max_link_m, &mut wide, &mut joined);
     rejoin_wide_pieces(points, &outside, &first, &mut wide, &mut split);
     *uf = split;
 }
@@ -309,11 +323,12 @@ const RING_TOLERANCE_MADS: f32 = 3.0;
 
 /// Rebuilds the sections with the points marked `outside` their ring taken
 /// out of it: they form sections of their own, joined by graph edges among
-/// themselves within their bin's section. A twig that runs along its stem's
+/// themselves (no longer than `max_link_m`) within their bin's section. A twig that runs along its stem's
 /// bark leaves the stem's ring here instead of bending its node.
 fn split_off_outside(
     graph: &Graph,
     outside: &[bool],
+    max_link_m: f32,
     wide: &mut UnionFind,
     joined: &mut UnionFind,
 ) -> UnionFind {
@@ -325,8 +340,8 @@ fn split_off_outside(
     for i in 0..n as u32 {
         if outside[i as usize] {
             let r = wide.find(i);
-            for &(w, _) in graph.neighbours(i as usize) {
-                if outside[w as usize] && wide.find(w) == r {
+            for &(w, length) in graph.neighbours(i as usize) {
+                if outside[w as usize] && length <= max_link_m && wide.find(w) == r {
                     split.union(i, w);
                 }
             }
@@ -342,8 +357,9 @@ fn split_off_outside(
     split
 }
 
-/// Joins the points of each bin that graph edges connect through points of
-/// the neighbouring bins, `window` bins either way.
+/// Joins the points of each bin that graph edges no longer than
+/// `max_link_m` connect through points of the neighbouring bins, `window`
+/// bins either way.
 ///
 /// A bin of a thick stem is a thin band around the bark whose circumference
 /// is long compared with the point spacing: the nearest-neighbour edges
@@ -352,7 +368,13 @@ fn split_off_outside(
 /// ring, while a twig still parts from its stem once no path within the
 /// window joins them: forks are found at most `window` bins late, and the
 /// nodes keep the fine bins' resolution along the branches.
-fn join_within_windows(graph: &Graph, bin: &[u32], window: u32, uf: &mut UnionFind) {
+fn join_within_windows(
+    graph: &Graph,
+    bin: &[u32],
+    window: u32,
+    max_link_m: f32,
+    uf: &mut UnionFind,
+) {
     let n = bin.len();
     let mut by_bin: Vec<u32> = (0..n as u32).collect();
     by_bin.sort_unstable_by_key(|&v| bin[v as usize]);
@@ -375,9 +397,9 @@ fn join_within_windows(graph: &Graph, bin: &[u32], window: u32, uf: &mut UnionFi
         }
         let mut window_uf = UnionFind::new(members.len());
         for (k, &v) in members.iter().enumerate() {
-            for &(w, _) in graph.neighbours(v as usize) {
+            for &(w, len) in graph.neighbours(v as usize) {
                 let lw = local[w as usize];
-                if lw != u32::MAX {
+                if lw != u32::MAX && len <= max_link_m {
                     window_uf.union(k as u32, lw);
                 }
             }
@@ -550,6 +572,8 @@ mod tests {
                 broken_ring_pieces: u32::MAX,
                 broken_ring_spread_m: 0.0,
                 ring_outlier_m: 0.0,
+                max_link_m: f32::INFINITY,
+                max_ring_link_m: f32::INFINITY,
             },
         );
         assert_eq!(s.nodes.len(), 2);
@@ -600,6 +624,8 @@ mod tests {
                 broken_ring_pieces: 3,
                 broken_ring_spread_m: 0.04,
                 ring_outlier_m,
+                max_link_m: f32::INFINITY,
+                max_ring_link_m: f32::INFINITY,
             },
         )
     }
