@@ -620,6 +620,7 @@ fn pipe_model(skeleton: &mut Skeleton, reference: NodeId, trunk_radius_m: f32, m
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::skeleton::Anchor;
 
     #[test]
     fn kasa_and_ransac_recover_a_noisy_half_circle_with_outliers() {
@@ -640,6 +641,42 @@ mod tests {
         assert!(c.centre.distance(Vec2::new(2.0, 3.0)) < 0.005);
         assert_eq!(inliers.len(), 60);
         assert_eq!(sectors_seen(&inliers, c.centre), 6);
+    }
+
+    /// A 0.3 m trunk scanned at breast height, with six spurious branches
+    /// lying on its bark (as a sparse, occluded scan leaves them): they are
+    /// nearer to every bark point than the trunk axis, so the fit falls back
+    /// to the points near the trunk and still finds the 0.3 m circle.
+    #[test]
+    fn spurious_bark_branches_do_not_hide_the_trunk_from_the_fit() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        let mut node = NodeId::ROOT;
+        for z in [1.0, 2.0, 3.0] {
+            node = tree.add_child(node, Vec3::new(0.0, 0.0, z), 0.3);
+        }
+        let breast = NodeId::from_index(1);
+        for k in 0..6 {
+            let (s, c) = (k as f32 * std::f32::consts::FRAC_PI_3).sin_cos();
+            let on_bark = |z: f32| Vec3::new(0.28 * c, 0.28 * s, z);
+            let first = tree.add_child(breast, on_bark(1.1), 0.02);
+            tree.add_child(first, on_bark(1.7), 0.02);
+        }
+        let points: Vec<Vec3> = (0..240)
+            .map(|i| {
+                let (s, c) = (i as f32 * 0.1).sin_cos();
+                Vec3::new(0.3 * c, 0.3 * s, 1.0 + 0.6 * (i as f32 + 0.5) / 240.0)
+            })
+            .collect();
+        let crown = Crown {
+            height_m: 3.0,
+            base_height_m: 2.0,
+            diameter_m: 2.0,
+            area_m2: 3.0,
+        };
+        let fit = fit_trunk(&tree, &points, &crown, &Params::default());
+        assert_eq!(fit.method, DbhMethod::Fitted, "{}", fit.reason);
+        assert!((fit.radius_m - 0.3).abs() < 0.01, "{fit:?}");
+        assert!(fit.reason.contains("near the trunk axis"), "{}", fit.reason);
     }
 
     #[test]
