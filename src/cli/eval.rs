@@ -16,21 +16,10 @@ use silva::eval::report::{Column, Source, median, render_table};
 use silva::eval::run::{EvalOptions, TreeRow, evaluate};
 use silva::reconstruct::{Mode, Options};
 use silva::skeleton::Anchor;
-use silva::synth::{
-    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
-};
+use silva::synth::{AlsOptions, Species, TreeParams, generate, simulate_als, simulate_tls};
 
-/// Which scanner the synthetic trees are seen by.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Scan {
-    /// Terrestrial: dense points on the branch surfaces.
-    Tls,
-    /// Airborne: sparse points from above with ground returns.
-    Als,
-}
+use super::synth::{Scan, ScanArgs};
 
-/// Arguments of `silva eval`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Folder whose point clouds (any supported format) are all evaluated.
@@ -42,17 +31,8 @@ pub struct Args {
     /// Scanner for the synthetic trees.
     #[arg(long, value_enum, default_value_t = Scan::Tls)]
     scan: Scan,
-    /// Scan density in points/m²: of clip area for ALS (default 20), of
-    /// bark surface for TLS (default 150).
-    #[arg(long)]
-    density: Option<f32>,
-    /// Gaussian noise standard deviation in metres (default 0.05 ALS,
-    /// 0.003 TLS).
-    #[arg(long)]
-    noise: Option<f32>,
-    /// TLS: keep points that no scanner could see (a clean, complete scan).
-    #[arg(long)]
-    no_occlusion: bool,
+    #[command(flatten)]
+    settings: ScanArgs,
     /// First seed of the synthetic trees (tree i uses seed + i).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -98,6 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.data.is_some() || args.synthetic > 0,
         "nothing to evaluate: give --data DIR and/or --synthetic N"
     );
+    args.settings.validate()?;
     let opts = eval_options(&args);
     let mut rows = Vec::new();
     if let Some(dir) = &args.data {
@@ -176,25 +157,8 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
     };
     let truth = generate(&TreeParams::preset(species), seed, anchor);
     let cloud = match args.scan {
-        Scan::Tls => {
-            let defaults = TlsOptions::default();
-            let tls = TlsOptions {
-                points_per_m2: args.density.unwrap_or(defaults.points_per_m2),
-                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
-                occlusion: !args.no_occlusion,
-                ..defaults
-            };
-            simulate_tls(&truth, &tls, seed)
-        }
-        Scan::Als => {
-            let defaults = AlsOptions::default();
-            let als = AlsOptions {
-                density_pts_per_m2: args.density.unwrap_or(defaults.density_pts_per_m2),
-                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
-                ..defaults
-            };
-            simulate_als(&truth, &als, seed)
-        }
+        Scan::Tls => simulate_tls(&truth, &args.settings.tls(), seed),
+        Scan::Als => simulate_als(&truth, &args.settings.als(), seed),
     };
     let name = format!(
         "{}-s{seed}-{}",

@@ -19,13 +19,68 @@ use silva::synth::{
 };
 use silva::{Anchor, PointCloud, Skeleton};
 
-/// Which scanner to simulate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Scan {
+/// Which scanner to simulate (`silva synth` and `silva eval`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scan {
     /// Terrestrial: bark surfaces, millimetre noise, self-occlusion.
     Tls,
     /// Airborne: an AHN3-like clip with crown, few trunk and ground returns.
     Als,
+}
+
+/// Scan settings shared by `silva synth` and `silva eval`; unset values take
+/// the simulators' defaults.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ScanArgs {
+    /// Point density in points/m²: of clip area for ALS (default 20), of bark
+    /// surface for TLS (default 150).
+    #[arg(long)]
+    density: Option<f32>,
+    /// Gaussian noise standard deviation in metres (default 0.05 ALS, 0.003 TLS).
+    #[arg(long)]
+    noise: Option<f32>,
+    /// TLS: keep points that no scanner could see (a clean, complete scan).
+    #[arg(long)]
+    no_occlusion: bool,
+}
+
+impl ScanArgs {
+    /// Refuses densities and noise levels no simulator should be asked for.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        if let Some(d) = self.density {
+            if !(d.is_finite() && d > 0.0 && d <= 10_000.0) {
+                bail!("--density must be a number of points/m² in (0, 10000], got {d}");
+            }
+        }
+        if let Some(n) = self.noise {
+            if !(n.is_finite() && (0.0..=1.0).contains(&n)) {
+                bail!("--noise must be a standard deviation in metres in [0, 1], got {n}");
+            }
+        }
+        Ok(())
+    }
+
+    /// The terrestrial simulator's options.
+    pub fn tls(&self) -> TlsOptions {
+        let defaults = TlsOptions::default();
+        TlsOptions {
+            points_per_m2: self.density.unwrap_or(defaults.points_per_m2),
+            noise_sd_m: self.noise.unwrap_or(defaults.noise_sd_m),
+            occlusion: !self.no_occlusion,
+            ..defaults
+        }
+    }
+
+    /// The airborne simulator's options.
+    pub fn als(&self) -> AlsOptions {
+        let defaults = AlsOptions::default();
+        AlsOptions {
+            density_pts_per_m2: self.density.unwrap_or(defaults.density_pts_per_m2),
+            noise_sd_m: self.noise.unwrap_or(defaults.noise_sd_m),
+            ..defaults
+        }
+    }
 }
 
 /// Arguments of `silva synth`.
@@ -40,16 +95,8 @@ pub struct Args {
     /// Scanner to simulate; needed with `-o`.
     #[arg(long, value_enum)]
     scan: Option<Scan>,
-    /// Point density in points/m²: of clip area for ALS (default 20), of bark
-    /// surface for TLS (default 150).
-    #[arg(long)]
-    density: Option<f32>,
-    /// Gaussian noise standard deviation in metres (default 0.05 ALS, 0.003 TLS).
-    #[arg(long)]
-    noise: Option<f32>,
-    /// TLS: keep points that no scanner could see.
-    #[arg(long)]
-    no_occlusion: bool,
+    #[command(flatten)]
+    settings: ScanArgs,
     /// ALS: set class 2 on ground returns and 1 elsewhere (default: unclassified).
     #[arg(long)]
     classify_ground: bool,
@@ -118,37 +165,16 @@ struct Simulated {
 }
 
 fn simulate(tree: &Skeleton, scan: Scan, args: &Args) -> anyhow::Result<Simulated> {
-    if let Some(d) = args.density {
-        if !(d.is_finite() && d > 0.0 && d <= 10_000.0) {
-            bail!("--density must be a number of points/m² in (0, 10000], got {d}");
-        }
-    }
-    if let Some(n) = args.noise {
-        if !(n.is_finite() && (0.0..=1.0).contains(&n)) {
-            bail!("--noise must be a standard deviation in metres in [0, 1], got {n}");
-        }
-    }
+    args.settings.validate()?;
     Ok(match scan {
-        Scan::Tls => {
-            let defaults = TlsOptions::default();
-            let opts = TlsOptions {
-                points_per_m2: args.density.unwrap_or(defaults.points_per_m2),
-                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
-                occlusion: !args.no_occlusion,
-                ..defaults
-            };
-            Simulated {
-                cloud: simulate_tls(tree, &opts, args.seed),
-                clip_area_m2: None,
-            }
-        }
+        Scan::Tls => Simulated {
+            cloud: simulate_tls(tree, &args.settings.tls(), args.seed),
+            clip_area_m2: None,
+        },
         Scan::Als => {
-            let defaults = AlsOptions::default();
             let opts = AlsOptions {
-                density_pts_per_m2: args.density.unwrap_or(defaults.density_pts_per_m2),
-                noise_sd_m: args.noise.unwrap_or(defaults.noise_sd_m),
                 classify_ground: args.classify_ground,
-                ..defaults
+                ..args.settings.als()
             };
             let half = opts.clip_half_width_m(tree);
             Simulated {
