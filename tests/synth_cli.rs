@@ -5,7 +5,8 @@ use std::process::Command;
 use glam::DVec3;
 use silva::cloud::{ReadOptions, read_path};
 use silva::synth::{
-    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, simulate_als,
+    simulate_tls,
 };
 use silva::{Anchor, Skeleton};
 
@@ -99,7 +100,12 @@ fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
             String::from_utf8_lossy(&out.stderr)
         );
         let expected = if scan == "als" {
-            simulate_als(&tree, &AlsOptions::default(), 3)
+            // The CLI's default: a leaf-off deciduous crown, as AHN.
+            let opts = AlsOptions {
+                foliage: Foliage::for_species(Species::Birch, Leaves::Off),
+                ..AlsOptions::default()
+            };
+            simulate_als(&tree, &opts, 3)
         } else {
             simulate_tls(&tree, &TlsOptions::default(), 3)
         };

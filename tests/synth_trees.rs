@@ -416,3 +416,54 @@ proptest! {
         prop_assert!((12.0..35.0).contains(&height_m(&t)));
     }
 }
+
+/// Share of the wood at least 5 cm thick (internode midpoints) with a return
+/// within 0.5 m: what an airborne reconstruction can hope to recover.
+fn wood_seen_share(t: &Skeleton, cloud: &silva::PointCloud) -> f32 {
+    let index = PointIndex::new(&cloud.points);
+    let thick: Vec<Vec3> = t
+        .ids()
+        .filter_map(|id| t.parent(id).map(|p| (p, id)))
+        .filter(|&(p, id)| t.radius(p).min(t.radius(id)) >= 0.05)
+        .map(|(p, id)| 0.5 * (t.position(p) + t.position(id)))
+        .collect();
+    let seen = thick
+        .iter()
+        .filter(|&&m| !index.within(m, 0.5).is_empty())
+        .count();
+    seen as f32 / thick.len().max(1) as f32
+}
+
+#[test]
+fn leaf_off_scans_see_the_limbs_of_deciduous_trees_and_conifers_keep_needles() {
+    use silva::synth::{Foliage, Leaves};
+    let scan = |species: Species, seed: u64, leaves: Leaves| {
+        let t = tree(species, seed);
+        let opts = AlsOptions {
+            foliage: Foliage::for_species(species, leaves),
+            ..AlsOptions::default()
+        };
+        let cloud = simulate_als(&t, &opts, seed);
+        wood_seen_share(&t, &cloud)
+    };
+    for (species, seed) in [
+        (Species::Oak, 31),
+        (Species::Birch, 32),
+        (Species::Poplar, 33),
+    ] {
+        let (on, off) = (
+            scan(species, seed, Leaves::On),
+            scan(species, seed, Leaves::Off),
+        );
+        // Leaf-on, foliage hides most of the wood.
+        assert!(
+            off >= 0.4 && off > on + 0.3,
+            "{species} {seed}: on {on}, off {off}"
+        );
+    }
+    let (on, off) = (
+        scan(Species::Pine, 34, Leaves::On),
+        scan(Species::Pine, 34, Leaves::Off),
+    );
+    assert_eq!(on, off, "a pine keeps its needles");
+}

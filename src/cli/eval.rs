@@ -16,7 +16,7 @@ use silva::eval::report::{Column, Source, median, render_table};
 use silva::eval::run::{EvalOptions, TreeRow, evaluate};
 use silva::reconstruct::{Mode, Options};
 use silva::skeleton::Anchor;
-use silva::synth::{AlsOptions, Species, TreeParams, generate, simulate_als, simulate_tls};
+use silva::synth::{Species, TreeParams, generate, simulate_als, simulate_tls};
 
 use super::synth::{Scan, ScanArgs};
 
@@ -59,6 +59,8 @@ struct Report<'a> {
     silva_version: &'static str,
     build: &'static str,
     scan: Scan,
+    /// Leaf state of the synthetic deciduous crowns (airborne scans only).
+    leaves: Option<silva::synth::Leaves>,
     trees: &'a [TreeRow],
     summary: Summary,
 }
@@ -93,6 +95,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "release"
         },
         scan: args.scan,
+        leaves: (args.scan == Scan::Als && args.synthetic > 0).then_some(args.settings.leaves),
         summary: summarise(&rows),
         trees: &rows,
     };
@@ -115,9 +118,9 @@ fn eval_options(args: &Args) -> EvalOptions {
         min_truth_radius_m: args
             .min_truth_radius
             .unwrap_or(if als { 0.05 } else { 0.0 }),
-        // Synthetic airborne scans see the simulator's foliage, so their
-        // true height is the top of the leaves; terrestrial ones see wood.
-        foliage: als.then(|| AlsOptions::default().foliage),
+        // Set per tree in `eval_synthetic`: airborne scans see the
+        // simulator's foliage; terrestrial ones see wood.
+        foliage: None,
     }
 }
 
@@ -156,9 +159,15 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
         crs: Some("EPSG:28992".into()),
     };
     let truth = generate(&TreeParams::preset(species), seed, anchor);
+    let mut opts = opts.clone();
     let cloud = match args.scan {
         Scan::Tls => simulate_tls(&truth, &args.settings.tls(), seed),
-        Scan::Als => simulate_als(&truth, &args.settings.als(), seed),
+        Scan::Als => {
+            let als = args.settings.als(species);
+            // The true height of an airborne scan is the top of the foliage.
+            opts.foliage = Some(als.foliage.clone());
+            simulate_als(&truth, &als, seed)
+        }
     };
     let name = format!(
         "{}-s{seed}-{}",
@@ -170,7 +179,7 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
         cloud.len(),
         truth.internode_count()
     );
-    evaluate(&name, Source::Synthetic, &cloud, Some(&truth), opts).0
+    evaluate(&name, Source::Synthetic, &cloud, Some(&truth), &opts).0
 }
 
 fn summarise(rows: &[TreeRow]) -> Summary {

@@ -15,7 +15,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use glam::DVec3;
 use silva::synth::{
-    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, simulate_als,
+    simulate_tls,
 };
 use silva::{Anchor, PointCloud, Skeleton};
 
@@ -43,6 +44,10 @@ pub struct ScanArgs {
     /// TLS: keep points that no scanner could see (a clean, complete scan).
     #[arg(long)]
     no_occlusion: bool,
+    /// ALS: leaf state of deciduous crowns; conifers keep their needles.
+    /// `off` (bare twigs) as AHN, flown in winter and early spring.
+    #[arg(long, value_enum, default_value_t = Leaves::Off)]
+    pub leaves: Leaves,
 }
 
 impl ScanArgs {
@@ -72,12 +77,13 @@ impl ScanArgs {
         }
     }
 
-    /// The airborne simulator's options.
-    pub fn als(&self) -> AlsOptions {
+    /// The airborne simulator's options for a tree of `species`.
+    pub fn als(&self, species: Species) -> AlsOptions {
         let defaults = AlsOptions::default();
         AlsOptions {
             density_pts_per_m2: self.density.unwrap_or(defaults.density_pts_per_m2),
             noise_sd_m: self.noise.unwrap_or(defaults.noise_sd_m),
+            foliage: Foliage::for_species(species, self.leaves),
             ..defaults
         }
     }
@@ -174,7 +180,7 @@ fn simulate(tree: &Skeleton, scan: Scan, args: &Args) -> anyhow::Result<Simulate
         Scan::Als => {
             let opts = AlsOptions {
                 classify_ground: args.classify_ground,
-                ..args.settings.als()
+                ..args.settings.als(args.species)
             };
             let half = opts.clip_half_width_m(tree);
             Simulated {
@@ -203,6 +209,7 @@ fn summary(
         out["points"] = s.cloud.len().into();
         if let Some(area) = s.clip_area_m2 {
             out["clip_area_m2"] = area.into();
+            out["leaves"] = serde_json::to_value(args.settings.leaves).unwrap_or_default();
             out["density_pts_per_m2"] = (s.cloud.len() as f32 / area).into();
         }
     }

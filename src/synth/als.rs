@@ -10,9 +10,21 @@
 //!
 //! - foliage: balls around the twig clusters (nodes thinner than
 //!   [`Foliage::twig_radius_max_m`]), which intercept the pulse with the
-//!   Beer–Lambert probability `1 − exp(−k · chord)`;
+//!   Beer–Lambert probability `1 − exp(−k · chord)`: leaves, or only the
+//!   fine twigs of a bare deciduous crown ([`Leaves`],
+//!   [`Foliage::for_species`]);
 //! - wood: the internode frustums, solid;
 //! - the ground: a plane through the trunk base (optionally sloped).
+//!
+//! Phenology ([`Leaves`]): AHN is flown leaf-off, in winter and early
+//! spring. A leaf-off deciduous crown keeps only its fine twigs
+//! ([`Foliage::bare_twigs`]); conifers keep their needles. The AHN3 Delft
+//! clip (2,488 returns, a 10 m deciduous tree, ground removed) has half its
+//! returns in the lower half of the tree, only 13 % in the top fifth, and
+//! returns on the stem below the crown; leaf-on simulations put 8–25 % in
+//! the lower half and none on the stem, leaf-off ones 19–37 % and a few
+//! stem returns (oak, birch, poplar, seeds 101–102). Leaf-on stays
+//! available for summer surveys.
 //!
 //! After a return the pulse goes on with a probability that depends on how
 //! much of its footprint the target covered, up to `max_returns`, and only
@@ -26,6 +38,7 @@
 use glam::{Vec2, Vec3};
 use rand_chacha::ChaCha8Rng;
 
+use super::Species;
 use super::geometry::{Frustum, Grid, Sphere};
 use super::random::{Stream, gaussian, seeded, unit};
 use super::tls::crown_radius_m;
@@ -63,7 +76,56 @@ impl Default for Foliage {
     }
 }
 
+/// The crowns' leaf state at scan time (phenology).
+///
+/// AHN, the national height model the airborne pipeline targets, is flown
+/// leaf-off, in winter and early spring; a summer survey sees leaf-on
+/// crowns. Conifers keep their needles in both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Leaves {
+    /// Summer: deciduous crowns in full leaf.
+    On,
+    /// Winter and early spring, as AHN is flown: deciduous crowns bare.
+    #[default]
+    Off,
+}
+
 impl Foliage {
+    /// A bare deciduous crown: no leaves, only the fine twigs that the
+    /// skeleton does not hold. They stay within 0.3 m of the twig nodes
+    /// and intercept a quarter of what the leafy crown does (extinction
+    /// 0.2 instead of 0.8 per metre): the woody area of a bare broadleaf
+    /// crown is about a fifth to a third of its leaf-on plant area. The
+    /// same pulses therefore reach the limbs and the stem, as the AHN3
+    /// leaf-off clips show (returns all through the crown depth and on the
+    /// stem, not only on the top of the crown).
+    pub fn bare_twigs() -> Self {
+        Foliage {
+            twig_radius_max_m: 0.02,
+            cluster_radius_m: 0.3,
+            extinction_per_m: 0.2,
+        }
+    }
+
+    /// The foliage of `species` in `leaves` state: conifers keep their
+    /// needles ([`Foliage::default`]) all year, deciduous trees have
+    /// [`Foliage::bare_twigs`] when leaf-off.
+    ///
+    /// ```
+    /// use silva::synth::{Foliage, Leaves, Species};
+    ///
+    /// assert_eq!(Foliage::for_species(Species::Pine, Leaves::Off), Foliage::default());
+    /// assert_eq!(Foliage::for_species(Species::Oak, Leaves::Off), Foliage::bare_twigs());
+    /// assert_eq!(Foliage::for_species(Species::Oak, Leaves::On), Foliage::default());
+    /// ```
+    pub fn for_species(species: Species, leaves: Leaves) -> Self {
+        match (species.is_deciduous(), leaves) {
+            (true, Leaves::Off) => Foliage::bare_twigs(),
+            _ => Foliage::default(),
+        }
+    }
+
     /// Height of the tree's top above its root with this foliage on: the
     /// top of the highest foliage ball, or the highest node when that is
     /// higher or the tree is leaf-off. An airborne scan of a leafy crown

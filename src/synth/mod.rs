@@ -41,7 +41,7 @@ mod random;
 mod tls;
 mod weber_penn;
 
-pub use als::{AlsOptions, Foliage, MAX_ALS_POINTS, simulate_als};
+pub use als::{AlsOptions, Foliage, Leaves, MAX_ALS_POINTS, simulate_als};
 pub use tls::{MAX_TLS_POINTS, ScannerPlacement, TlsOptions, simulate_tls};
 pub use weber_penn::{CrownShape, LevelParams, MAX_NODES, TreeParams, generate};
 
@@ -62,6 +62,11 @@ pub enum Species {
 impl Species {
     /// All species with a preset.
     pub const ALL: [Species; 4] = [Species::Oak, Species::Birch, Species::Poplar, Species::Pine];
+
+    /// Sheds its leaves in winter (all but the pine).
+    pub fn is_deciduous(self) -> bool {
+        self != Species::Pine
+    }
 
     /// Lower-case name, as accepted by [`FromStr`].
     pub fn name(self) -> &'static str {

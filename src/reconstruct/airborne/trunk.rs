@@ -36,6 +36,9 @@ pub(super) enum TrunkRule {
     FromLowestPoint,
     /// Eq. 4: from the footprint centre up to the crown centroid.
     FromCrownCentre,
+    /// Our addition: down from a column of stem returns under the crown
+    /// (see [`stem_column`]).
+    OnStemReturns,
 }
 
 /// The inserted trunk.
@@ -58,6 +61,7 @@ impl Trunk {
         let eq = match self.rule {
             TrunkRule::FromLowestPoint => "Eq. 3 (down from the lowest point)",
             TrunkRule::FromCrownCentre => "Eq. 4 (footprint centre to crown centroid)",
+            TrunkRule::OnStemReturns => "a column of stem returns, then Eq. 4's line",
         };
         format!(
             "trunk: {} points by {eq}, λ1 = {:.0}°, λ2 = {:.2}",
@@ -120,34 +124,26 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     // Algorithm 1's kNN pass links the trunk to the crown points around it
     // instead of letting the trunk form a closed clique.
     let spacing = params.neighbour_radius_m * 0.5;
-    let (rule, points) = match eq3 {
-        Some(n) => {
+    let column_xy = terrain.and_then(|t| stem_column(tree, t, half_diagonal, centre_xy));
+    let (rule, points) = match (eq3, column_xy) {
+        (Some(n), _) => {
             // Eq. 3: v_t = v_low − n_avg·t, t = h / n_avg.z reaches the ground.
             let h = v_low.z - ground_at(v_low.truncate());
             let mut root = v_low - n * (h / n.z);
             root.z = ground_at(root.truncate());
             let low = above(root, v_low, params.voxel_m);
-            let mut points = line(root, low, spacing);
-            // At AHN densities there are no further trunk hits above v_low,
-            // so the trunk continues to the crown's centre of mass as in
-            // Eq. 4; without it the skeleton would have to find its way up
-            // through the empty space under the crown.
-            // It rises vertically to the crown's lowest layer (§5.3: trunks
-            // grow nearly perpendicular to the ground) and then follows
-            // the Eq. 4 line to the centroid.
             let crown_base = crown_base_z(tree, v_low, params.trunk_sphere_m);
-            let mut from = low;
-            if crown_base > low.z + spacing && crown_base < v_c.z {
-                let knee = Vec3::new(low.x, low.y, crown_base);
-                points.extend(line(low, knee, spacing).into_iter().skip(1));
-                from = knee;
-            }
-            if v_c.z > from.z + spacing {
-                points.extend(line(from, v_c, spacing).into_iter().skip(1));
-            }
+            let points = rising_trunk(root, low, crown_base, v_c, spacing);
             (TrunkRule::FromLowestPoint, points)
         }
-        None => {
+        (None, Some(xy)) => {
+            let root = xy.extend(ground_at(xy));
+            let low = above(root, root, params.voxel_m);
+            let crown_base = crown_base_z(tree, root, params.trunk_sphere_m);
+            let points = rising_trunk(root, low, crown_base, v_c, spacing);
+            (TrunkRule::OnStemReturns, points)
+        }
+        (None, None) => {
             // Eq. 4: v_t = v_c − (v_c − g_b)/‖v_c − g_b‖·t between g_b and v_c.
             (
                 TrunkRule::FromCrownCentre,
@@ -161,6 +157,75 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         lambda1_deg,
         lambda2,
     }
+}
+
+/// The trunk from `root` through `low` (its lowest hit or a step above the
+/// root) to the crown centroid `v_c`. At AHN densities there are no further
+/// trunk hits above `low`, so the trunk continues to the crown's centre of
+/// mass as in Eq. 4; without it the skeleton would have to find its way up
+/// through the empty space under the crown. It rises vertically to the
+/// crown's lowest layer `crown_base` (§5.3: trunks grow nearly perpendicular
+/// to the ground) and then follows the Eq. 4 line to the centroid.
+fn rising_trunk(root: Vec3, low: Vec3, crown_base: f32, v_c: Vec3, spacing: f32) -> Vec<Vec3> {
+    let mut points = line(root, low, spacing);
+    let mut from = low;
+    if crown_base > low.z + spacing && crown_base < v_c.z {
+        let knee = Vec3::new(low.x, low.y, crown_base);
+        points.extend(line(low, knee, spacing).into_iter().skip(1));
+        from = knee;
+    }
+    if v_c.z > from.z + spacing {
+        points.extend(line(from, v_c, spacing).into_iter().skip(1));
+    }
+    points
+}
+
+/// Heights above the ground of the stem band searched by [`stem_column`],
+/// in metres: above the ground returns' noise, below most crowns' lowest
+/// limbs.
+const STEM_BAND_M: (f32, f32) = (0.3, 2.5);
+
+/// Horizontal radius of a stem column, in metres: returns lie on the bark
+/// all round a trunk up to 0.8 m thick at its flared base, plus the
+/// scanner's noise (0.35 m split a poplar's three stem returns).
+const STEM_COLUMN_RADIUS_M: f32 = 0.5;
+
+/// The horizontal position of the stem, from the returns in the stem band
+/// (0.3–2.5 m above the ground): the mean position of the largest group of
+/// at least two band returns within [`STEM_COLUMN_RADIUS_M`] of one of them,
+/// if it lies within §4.2's λ2 ≤ 0.5 of the footprint centre. Not in the
+/// paper, whose v_low is the lowest return: when ground returns are in the
+/// clip the lowest tree return is as often ground noise or a limb tip, while
+/// a leaf-off (AHN) scan hits the stem below the crown a few times. Only
+/// with a terrain: without one the band's ground level is unknown (the
+/// lowest return of a segmented tree may be the bottom of its crown).
+fn stem_column(
+    tree: &[Vec3],
+    terrain: &Terrain,
+    half_diagonal: f32,
+    centre_xy: Vec2,
+) -> Option<Vec2> {
+    let band: Vec<Vec2> = tree
+        .iter()
+        .filter(|p| {
+            let h = p.z - terrain.height_at(p.x, p.y);
+            (STEM_BAND_M.0..=STEM_BAND_M.1).contains(&h)
+        })
+        .map(|p| p.truncate())
+        .collect();
+    let group = |c: Vec2| -> Vec<Vec2> {
+        band.iter()
+            .copied()
+            .filter(|q| q.distance(c) <= STEM_COLUMN_RADIUS_M)
+            .collect()
+    };
+    let best = band
+        .iter()
+        .filter(|c| c.distance(centre_xy) <= LONE_HIT_LAMBDA2_MAX * half_diagonal)
+        .map(|&c| group(c))
+        .max_by_key(Vec::len)
+        .filter(|g| g.len() >= 2)?;
+    Some(best.iter().copied().sum::<Vec2>() / best.len() as f32)
 }
 
 /// λ2 limit for a lowest point without neighbours: §4.2's 0.5.
@@ -251,6 +316,7 @@ fn line(from: Vec3, to: Vec3, step_m: f32) -> Vec<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reconstruct::ground::fit_terrain;
 
     /// A ring of crown returns 6 m up, radius 3 m around the origin.
     fn crown() -> Vec<Vec3> {
@@ -296,6 +362,37 @@ mod tests {
         let trunk = add_trunk(&tree, None, &Params::default());
         assert!(trunk.lambda2 > 0.25 && trunk.lambda2 <= 0.5);
         assert_eq!(trunk.rule, TrunkRule::FromLowestPoint);
+    }
+
+    #[test]
+    fn stem_returns_under_the_crown_place_the_base_when_the_lowest_point_is_noise() {
+        let mut tree = crown();
+        // A leaf-off scan: three stem returns 1.2 m off the crown's centre,
+        // and ground noise 0.2 m up under the crown's edge as the lowest
+        // tree point (no column, so neither Eq. 3 nor the centre applies).
+        tree.extend([
+            Vec3::new(1.2, 0.5, 0.7),
+            Vec3::new(1.1, 0.6, 1.4),
+            Vec3::new(1.3, 0.4, 2.2),
+            Vec3::new(-2.5, 1.0, 0.2),
+            Vec3::new(-2.0, -1.5, 0.25),
+        ]);
+        // Flat ground at z = 0 around the tree.
+        let ground: Vec<Vec3> = (-20..=20)
+            .flat_map(|i| (-20..=20).map(move |j| Vec3::new(i as f32 * 0.4, j as f32 * 0.4, 0.0)))
+            .collect();
+        let terrain = fit_terrain(&ground).expect("flat ground");
+        let trunk = add_trunk(&tree, Some(&terrain), &Params::default());
+        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
+        let base = trunk.points[0];
+        assert!(
+            base.truncate().distance(Vec2::new(1.2, 0.5)) < 0.1,
+            "{base}"
+        );
+        assert!(base.z.abs() < 0.05, "{base}");
+        // Without a terrain the band has no ground level: not used.
+        let terrain_free = add_trunk(&tree, None, &Params::default());
+        assert_ne!(terrain_free.rule, TrunkRule::OnStemReturns);
     }
 
     #[test]
