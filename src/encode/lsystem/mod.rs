@@ -59,7 +59,7 @@ pub use read::decode;
 
 use format::{Dimensions, Symbol};
 use generalise::TipPlan;
-use write::{Tolerance, shortest_within, write_axiom};
+use write::{Tolerance, length_unit, shortest_within, write_axiom, write_dimensions};
 
 use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 
@@ -153,7 +153,9 @@ pub enum LsError {
     #[error("LsJSON: {0}")]
     Json(#[from] serde_json::Error),
     /// Not an LsJSON version this build reads.
-    #[error("LsJSON: expected format \"lsjson\" version 1, found \"{format}\" version {version}")]
+    #[error(
+        "LsJSON: expected format \"lsjson\" version 1 or 2, found \"{format}\" version {version}"
+    )]
     Version {
         /// The `format` field.
         format: String,
@@ -251,16 +253,24 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
         radius_m: non_negative(opts.radius_tolerance_m),
         radius_rel: non_negative(opts.radius_tolerance_rel),
     };
+    let dims = write_dimensions(length_unit(tolerance.position_m));
     let plan = opts
         .generalise_tips
         .filter(|&k| k > 0)
-        .map(|k| TipPlan::new(&canon, &targets, k, tolerance));
+        .map(|k| TipPlan::new(&canon, &targets, k, tolerance, dims.unit_m));
     let root_radius = f64::from(canon.radius(NodeId::ROOT));
     let trunk_radius_m =
         shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0));
-    let mut axiom = write_axiom(&canon, &targets, trunk_radius_m, tolerance, plan.as_ref());
+    let mut axiom = write_axiom(
+        &canon,
+        &targets,
+        trunk_radius_m,
+        tolerance,
+        &dims,
+        plan.as_ref(),
+    );
     let mut rules = plan.as_ref().map(|p| p.rules.clone()).unwrap_or_default();
-    let dimensions = use_defaults(&mut axiom, rules.values_mut());
+    let dimensions = use_defaults(&mut axiom, rules.values_mut(), dims.unit_m);
     let mut depth = rules::rule_depths(&rules);
     rules::compress(&mut axiom, &mut rules, &mut depth);
     let mut ls = LsJson {
@@ -296,6 +306,7 @@ fn non_negative(v: f32) -> f64 {
 fn use_defaults<'a>(
     axiom: &mut Vec<Symbol>,
     rules: impl Iterator<Item = &'a mut Vec<Symbol>>,
+    unit_m: f64,
 ) -> Dimensions {
     let mut rules: Vec<&mut Vec<Symbol>> = rules.collect();
     let mode = |chars: &[u8], all: &[&Vec<Symbol>]| {
@@ -331,6 +342,7 @@ fn use_defaults<'a>(
         }
     }
     Dimensions {
+        unit_m,
         forward: forward.unwrap_or(1.0),
         rotation: rotation.unwrap_or(0.0),
         roll: roll.unwrap_or(0.0),

@@ -22,8 +22,9 @@ fn key(s: &Symbol) -> Key {
     (s.ch, s.param.map(f64::to_bits))
 }
 
+/// Bytes of a symbol in the JSON document (a backslash is escaped).
 fn cost(s: &Symbol) -> usize {
-    print(std::slice::from_ref(s)).len()
+    print(std::slice::from_ref(s)).len() + usize::from(s.ch == b'\\')
 }
 
 /// Replaces repeated symbols and pairs of `axiom` by rules, using letters

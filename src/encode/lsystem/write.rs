@@ -29,13 +29,31 @@ use crate::skeleton::{NodeId, Skeleton};
 
 /// Finest rounding tried before printing a number exactly.
 const MAX_DECIMALS: usize = 12;
-/// Dimensions the writer assumes while writing; defaults are only filled in
-/// afterwards, for parameters that already equal them.
-pub(crate) const WRITE_DIMENSIONS: Dimensions = Dimensions {
-    forward: 1.0,
-    rotation: 0.0,
-    roll: 0.0,
-};
+/// Dimensions the writer assumes while writing, with lengths in units of
+/// `unit_m`; defaults are only filled in afterwards, for parameters that
+/// already equal them.
+pub(crate) fn write_dimensions(unit_m: f64) -> Dimensions {
+    Dimensions {
+        unit_m,
+        forward: 1.0,
+        rotation: 0.0,
+        roll: 0.0,
+    }
+}
+
+/// The length unit for a position tolerance: the largest power of ten not
+/// above it (1 mm for 1 mm), so that lengths print as short integers;
+/// between 1 µm and 1 m.
+pub(crate) fn length_unit(tolerance_m: f64) -> f64 {
+    let exponent = if tolerance_m > 0.0 {
+        tolerance_m.log10().floor().clamp(-6.0, 0.0)
+    } else {
+        -6.0
+    };
+    format!("1e{exponent}")
+        .parse()
+        .expect("a power of ten parses")
+}
 
 /// Relative slack for the `f32` rounding of a decoded value of magnitude 1.
 const F32_SLACK: f64 = 1.0 / (1u64 << 23) as f64;
@@ -57,11 +75,12 @@ fn rounded(value: f64, decimals: usize) -> f64 {
         .expect("a formatted f64 parses")
 }
 
-/// Printed length of a parameter, in characters.
-fn printed_len(value: f64) -> usize {
+/// Bytes a symbol with parameter `value` takes in the JSON document:
+/// `c(value)`, and a backslash is escaped as `\\`.
+fn json_cost(ch: u8, value: f64) -> usize {
     let mut s = String::new();
     super::format::push_number(&mut s, value);
-    s.len()
+    s.len() + 3 + usize::from(ch == b'\\')
 }
 
 /// One way to print a quantity: the symbol (if any) and its cost in bytes.
@@ -85,7 +104,7 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
             let ch = if v > 0.0 { positive } else { negative };
             out.push(Choice {
                 symbol: Some(Symbol::with(ch, v.abs())),
-                cost: 3 + printed_len(v.abs()),
+                cost: json_cost(ch, v.abs()),
             });
             last = v;
         }
@@ -93,37 +112,80 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
             return out;
         }
     }
+    let ch = if angle_deg > 0.0 { positive } else { negative };
     out.push(Choice {
-        symbol: Some(Symbol::with(
-            if angle_deg > 0.0 { positive } else { negative },
-            angle_deg.abs(),
-        )),
-        cost: 3 + printed_len(angle_deg.abs()),
+        symbol: Some(Symbol::with(ch, angle_deg.abs())),
+        cost: json_cost(ch, angle_deg.abs()),
     });
     out
 }
 
-/// Roundings of an internode length, coarse to fine.
-fn length_choices(length_m: f64, fine_m: f64) -> Vec<Choice> {
+/// Roundings of an internode length in length units, coarse to fine.
+fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
     let mut out: Vec<Choice> = Vec::new();
     let mut last = f64::NAN;
     for k in 0..=MAX_DECIMALS {
-        let v = rounded(length_m, k);
+        let v = rounded(length, k);
         if v != last {
             out.push(Choice {
                 symbol: Some(Symbol::with(b'F', v)),
-                cost: 3 + printed_len(v),
+                cost: json_cost(b'F', v),
             });
             last = v;
         }
-        if (v - length_m).abs() <= fine_m {
+        if (v - length).abs() <= fine {
             return out;
         }
     }
     out.push(Choice {
-        symbol: Some(Symbol::with(b'F', length_m)),
-        cost: 3 + printed_len(length_m),
+        symbol: Some(Symbol::with(b'F', length)),
+        cost: json_cost(b'F', length),
     });
+    out
+}
+
+/// Yaw (about `U`, positive left) and then pitch (about the yawed `L`,
+/// positive down) in degrees that turn `turtle`'s heading onto `direction`
+/// (unit). Unlike [`roll_pitch`] it leaves the frame unrolled, and a small
+/// turn is two small angles.
+fn yaw_pitch(turtle: &TurtleState, direction: DVec3) -> (f64, f64) {
+    let h = direction.dot(turtle.heading);
+    let l = direction.dot(turtle.left);
+    let u = direction.dot(turtle.up);
+    (l.atan2(h).to_degrees(), (-u).atan2(h.hypot(l)).to_degrees())
+}
+
+/// The equivalent ways to turn the heading onto `direction` (unit) before a
+/// step of `length_m`, each as roundings of a first turn and of a pitch:
+/// roll then pitch with the roll within ±90°, the same with the roll on the
+/// other side (a `/` instead of an escaped `\\`, or a shorter number), and
+/// yaw then pitch. Roundings stop at an angle error that moves the node by
+/// `fine_m`.
+fn turn_choices(
+    turtle: &TurtleState,
+    direction: DVec3,
+    length_m: f64,
+    fine_m: f64,
+) -> Vec<[Vec<Choice>; 2]> {
+    let fine_pitch = (fine_m / length_m).to_degrees();
+    let (roll, pitch) = roll_pitch(turtle, direction, true);
+    let sin_pitch = pitch.to_radians().sin().abs().max(1e-300);
+    let fine_roll = (fine_m / (length_m * sin_pitch)).to_degrees();
+    let roll_then_pitch = |roll: f64, pitch: f64| {
+        [
+            angle_choices(roll, b'\\', b'/', fine_roll),
+            angle_choices(pitch, b'&', b'^', fine_pitch),
+        ]
+    };
+    let mut out = vec![roll_then_pitch(roll, pitch)];
+    if roll != 0.0 {
+        out.push(roll_then_pitch(roll - 180.0f64.copysign(roll), -pitch));
+    }
+    let (yaw, yaw_pitch) = yaw_pitch(turtle, direction);
+    out.push([
+        angle_choices(yaw, b'+', b'-', fine_pitch),
+        angle_choices(yaw_pitch, b'&', b'^', fine_pitch),
+    ]);
     out
 }
 
@@ -155,6 +217,7 @@ pub(crate) fn write_internode(
     turtle: &mut TurtleState,
     target: DVec3,
     budget_m: f64,
+    dims: &Dimensions,
     out: &mut Vec<Symbol>,
 ) -> f64 {
     let offset = target - turtle.position;
@@ -162,33 +225,23 @@ pub(crate) fn write_internode(
     let budget = budget_m.max(0.0);
     // A rounding whose own error is this small counts as exact.
     let fine_m = budget * 1e-2;
-    let (rolls, pitches) = if length > 0.0 {
-        let (roll, pitch) = roll_pitch(turtle, offset / length, true);
-        let fine_pitch = (fine_m / length).to_degrees();
-        let sin_pitch = pitch.to_radians().sin().abs().max(1e-300);
-        let fine_roll = (fine_m / (length * sin_pitch)).to_degrees();
-        (
-            angle_choices(roll, b'\\', b'/', fine_roll),
-            angle_choices(pitch, b'&', b'^', fine_pitch),
-        )
+    let turns = if length > 0.0 {
+        turn_choices(turtle, offset / length, length, fine_m)
     } else {
-        (
-            vec![Choice {
-                symbol: None,
-                cost: 0,
-            }],
-            vec![Choice {
-                symbol: None,
-                cost: 0,
-            }],
-        )
+        let none = Choice {
+            symbol: None,
+            cost: 0,
+        };
+        vec![[vec![none], vec![none]]]
     };
-    let lengths = length_choices(length, fine_m);
+    let lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
     let mut combos: Vec<(usize, Choice, Choice, Choice)> = Vec::new();
-    for &r in &rolls {
-        for &p in &pitches {
-            for &f in &lengths {
-                combos.push((r.cost + p.cost + f.cost, r, p, f));
+    for [turn, pitches] in &turns {
+        for &r in turn {
+            for &p in pitches {
+                for &f in &lengths {
+                    combos.push((r.cost + p.cost + f.cost, r, p, f));
+                }
             }
         }
     }
@@ -196,7 +249,7 @@ pub(crate) fn write_internode(
     let simulate = |(_, r, p, f): &(usize, Choice, Choice, Choice)| {
         let mut t = *turtle;
         for s in [r.symbol, p.symbol, f.symbol].into_iter().flatten() {
-            t.apply(s, &WRITE_DIMENSIONS, true);
+            t.apply(s, dims, true);
         }
         (t, t.position.distance(target))
     };
@@ -227,6 +280,7 @@ fn write_width(
     skeleton: &Skeleton,
     id: NodeId,
     tolerance: Tolerance,
+    dims: &Dimensions,
     out: &mut Vec<Symbol>,
 ) {
     let interval = |n: NodeId| {
@@ -247,9 +301,9 @@ fn write_width(
         (lo, hi) = (l.max(lo), h.min(hi));
         node = next;
     }
-    let w = shortest_within((lo + hi) / 2.0, (hi - lo) / 2.0).max(0.0);
-    let s = Symbol::with(b'!', w);
-    turtle.apply(s, &WRITE_DIMENSIONS, true);
+    let w = shortest_within((lo + hi) / 2.0 / dims.unit_m, (hi - lo) / 2.0 / dims.unit_m);
+    let s = Symbol::with(b'!', w.max(0.0));
+    turtle.apply(s, dims, true);
     out.push(s);
 }
 
@@ -302,6 +356,7 @@ pub(crate) fn write_axiom(
     targets: &[DVec3],
     trunk_radius_m: f64,
     tolerance: Tolerance,
+    dims: &Dimensions,
     plan: Option<&TipPlan>,
 ) -> Vec<Symbol> {
     let mut out = Vec::with_capacity(skeleton.len() * 4);
@@ -327,16 +382,18 @@ pub(crate) fn write_axiom(
                         target,
                         rule,
                         tolerance,
+                        dims,
                         &mut out,
                     );
                     continue;
                 }
                 let target = targets[id.index()];
-                write_width(&mut turtle, skeleton, id, tolerance, &mut out);
+                write_width(&mut turtle, skeleton, id, tolerance, dims, &mut out);
                 write_internode(
                     &mut turtle,
                     target,
                     tolerance.position_budget(target),
+                    dims,
                     &mut out,
                 );
                 push_children(skeleton, id, &mut work);
@@ -366,12 +423,13 @@ pub(crate) fn simulate<'r>(
     turtle: &mut TurtleState,
     symbols: &[Symbol],
     rules: &dyn Fn(u8) -> Option<&'r [Symbol]>,
+    dims: &Dimensions,
     drawn: &mut Vec<DVec3>,
 ) {
     for &s in symbols {
         if let Some(body) = rules(s.ch) {
-            simulate(turtle, body, rules, drawn);
-        } else if turtle.apply(s, &WRITE_DIMENSIONS, true) == Effect::Drew {
+            simulate(turtle, body, rules, dims, drawn);
+        } else if turtle.apply(s, dims, true) == Effect::Drew {
             drawn.push(turtle.position);
         }
     }
