@@ -59,7 +59,7 @@ pub use read::decode;
 
 use format::{Dimensions, Symbol};
 use generalise::TipPlan;
-use write::{Tolerance, length_unit, shortest_within, write_axiom, write_dimensions};
+use write::{Favoured, Tolerance, length_unit, shortest_within, write_axiom, write_dimensions};
 
 use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 
@@ -259,35 +259,77 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
         .filter(|&k| k > 0)
         .map(|k| TipPlan::new(&canon, &targets, k, tolerance, dims.unit_m));
     let root_radius = f64::from(canon.radius(NodeId::ROOT));
-    let trunk_radius_m =
-        shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0));
-    let mut axiom = write_axiom(
-        &canon,
-        &targets,
-        trunk_radius_m,
-        tolerance,
-        &dims,
-        plan.as_ref(),
-    );
-    let mut rules = plan.as_ref().map(|p| p.rules.clone()).unwrap_or_default();
-    let dimensions = use_defaults(&mut axiom, rules.values_mut(), dims.unit_m);
-    let mut depth = rules::rule_depths(&rules);
-    rules::compress(&mut axiom, &mut rules, &mut depth);
-    let mut ls = LsJson {
-        recursions: depth.values().copied().max().unwrap_or(0),
-        axiom,
-        rules,
+    let writing = Writing {
+        canon: &canon,
+        targets,
         anchor: Anchor {
             origin: anchor,
             crs: canon.anchor().crs.clone(),
         },
-        trunk_radius_m,
-        dimensions,
-        degrees: true,
-        error: ErrorBound::default(),
+        trunk_radius_m: shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0)),
+        tolerance,
+        dims,
+        plan,
     };
-    ls.error = measure(&canon, &ls, tolerance, plan.as_ref());
+    // A second pass prefers the parameters that the first turned into
+    // rules or defaults; it is kept only when it is shorter.
+    let first = writing.document(&Favoured::default());
+    let second = writing.document(&Favoured::from(first.rules.values(), &first.dimensions));
+    let mut ls = if second.to_json().len() < first.to_json().len() {
+        second
+    } else {
+        first
+    };
+    ls.error = measure(&canon, &ls, tolerance, writing.plan.as_ref());
     ls
+}
+
+/// What every pass of the writer shares.
+struct Writing<'a> {
+    /// The skeleton in canonical order.
+    canon: &'a Skeleton,
+    /// Node positions relative to the root.
+    targets: Vec<DVec3>,
+    anchor: Anchor,
+    trunk_radius_m: f64,
+    tolerance: Tolerance,
+    /// The writer's dimensions, with the length unit.
+    dims: Dimensions,
+    plan: Option<TipPlan>,
+}
+
+impl Writing<'_> {
+    /// Writes the document, preferring `favoured` parameters, then fills in
+    /// the defaults and rules; the errors are not measured yet.
+    fn document(&self, favoured: &Favoured) -> LsJson {
+        let mut axiom = write_axiom(
+            self.canon,
+            &self.targets,
+            self.trunk_radius_m,
+            self.tolerance,
+            &self.dims,
+            self.plan.as_ref(),
+            favoured,
+        );
+        let mut rules = self
+            .plan
+            .as_ref()
+            .map(|p| p.rules.clone())
+            .unwrap_or_default();
+        let dimensions = use_defaults(&mut axiom, rules.values_mut(), self.dims.unit_m);
+        let mut depth = rules::rule_depths(&rules);
+        rules::compress(&mut axiom, &mut rules, &mut depth);
+        LsJson {
+            recursions: depth.values().copied().max().unwrap_or(0),
+            axiom,
+            rules,
+            anchor: self.anchor.clone(),
+            trunk_radius_m: self.trunk_radius_m,
+            dimensions,
+            degrees: true,
+            error: ErrorBound::default(),
+        }
+    }
 }
 
 /// A tolerance as `f64` at the decimal value the user typed (0.001, not

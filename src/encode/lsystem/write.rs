@@ -160,21 +160,27 @@ fn yaw_pitch(turtle: &TurtleState, direction: DVec3) -> (f64, f64) {
 /// roll then pitch with the roll within ±90°, the same with the roll on the
 /// other side (a `/` instead of an escaped `\\`, or a shorter number), and
 /// yaw then pitch. Roundings stop at an angle error that moves the node by
-/// `fine_m`.
+/// `fine_m`; favoured angles are tried up to an error that moves it by
+/// `budget_m`.
 fn turn_choices(
     turtle: &TurtleState,
     direction: DVec3,
     length_m: f64,
-    fine_m: f64,
+    (fine_m, budget_m): (f64, f64),
+    favoured: &Favoured,
 ) -> Vec<[Vec<Choice>; 2]> {
-    let fine_pitch = (fine_m / length_m).to_degrees();
+    let to_deg = |distance_m: f64, lever_m: f64| (distance_m / lever_m.max(1e-300)).to_degrees();
+    let angle = |value: f64, positive: u8, negative: u8, lever_m: f64| {
+        let mut out = angle_choices(value, positive, negative, to_deg(fine_m, lever_m));
+        out.extend(favoured.near(value, positive, negative, to_deg(budget_m, lever_m)));
+        out
+    };
     let (roll, pitch) = roll_pitch(turtle, direction, true);
-    let sin_pitch = pitch.to_radians().sin().abs().max(1e-300);
-    let fine_roll = (fine_m / (length_m * sin_pitch)).to_degrees();
+    let roll_lever = length_m * pitch.to_radians().sin().abs();
     let roll_then_pitch = |roll: f64, pitch: f64| {
         [
-            angle_choices(roll, b'\\', b'/', fine_roll),
-            angle_choices(pitch, b'&', b'^', fine_pitch),
+            angle(roll, b'\\', b'/', roll_lever),
+            angle(pitch, b'&', b'^', length_m),
         ]
     };
     let mut out = vec![roll_then_pitch(roll, pitch)];
@@ -183,10 +189,62 @@ fn turn_choices(
     }
     let (yaw, yaw_pitch) = yaw_pitch(turtle, direction);
     out.push([
-        angle_choices(yaw, b'+', b'-', fine_pitch),
-        angle_choices(yaw_pitch, b'&', b'^', fine_pitch),
+        angle(yaw, b'+', b'-', length_m),
+        angle(yaw_pitch, b'&', b'^', length_m),
     ]);
     out
+}
+
+/// Parameters that an earlier pass printed as one rule letter or omitted
+/// as a default: the writer prefers them, at a cost of one byte, wherever
+/// one keeps the node within its budget, so that they get more frequent
+/// and the rules built afterwards pay more.
+#[derive(Debug, Default)]
+pub(crate) struct Favoured(Vec<Symbol>);
+
+impl Favoured {
+    /// The parametrised symbols of single-symbol rules, and the defaults of
+    /// `dims`, from an encoding written with these rules and dimensions.
+    pub(crate) fn from<'a>(
+        rules: impl Iterator<Item = &'a Vec<Symbol>>,
+        dims: &Dimensions,
+    ) -> Self {
+        let mut symbols: Vec<Symbol> = rules
+            .filter_map(|body| match body.as_slice() {
+                [s] if s.param.is_some() => Some(*s),
+                _ => None,
+            })
+            .collect();
+        symbols.push(Symbol::with(b'F', dims.forward));
+        for ch in *b"&^+-" {
+            symbols.push(Symbol::with(ch, dims.rotation));
+        }
+        symbols.extend([
+            Symbol::with(b'\\', dims.roll),
+            Symbol::with(b'/', dims.roll),
+        ]);
+        Favoured(symbols)
+    }
+
+    /// Favoured symbols for a quantity `value` written with `positive` (or
+    /// `negative` for negative values), within `reach` of it.
+    fn near(&self, value: f64, positive: u8, negative: u8, reach: f64) -> Vec<Choice> {
+        self.0
+            .iter()
+            .filter_map(|s| {
+                let p = s.param?;
+                let signed = match s.ch {
+                    c if c == positive => p,
+                    c if c == negative => -p,
+                    _ => return None,
+                };
+                ((signed - value).abs() <= reach).then_some(Choice {
+                    symbol: Some(*s),
+                    cost: 1,
+                })
+            })
+            .collect()
+    }
 }
 
 /// Roll (about `H`) and pitch (about the rolled `L`, positive down) in
@@ -218,6 +276,7 @@ pub(crate) fn write_internode(
     target: DVec3,
     budget_m: f64,
     dims: &Dimensions,
+    favoured: &Favoured,
     out: &mut Vec<Symbol>,
 ) -> f64 {
     let offset = target - turtle.position;
@@ -226,7 +285,7 @@ pub(crate) fn write_internode(
     // A rounding whose own error is this small counts as exact.
     let fine_m = budget * 1e-2;
     let turns = if length > 0.0 {
-        turn_choices(turtle, offset / length, length, fine_m)
+        turn_choices(turtle, offset / length, length, (fine_m, budget), favoured)
     } else {
         let none = Choice {
             symbol: None,
@@ -234,7 +293,8 @@ pub(crate) fn write_internode(
         };
         vec![[vec![none], vec![none]]]
     };
-    let lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
+    let mut lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
+    lengths.extend(favoured.near(length / dims.unit_m, b'F', b'F', budget / dims.unit_m));
     let mut combos: Vec<(usize, Choice, Choice, Choice)> = Vec::new();
     for [turn, pitches] in &turns {
         for &r in turn {
@@ -358,6 +418,7 @@ pub(crate) fn write_axiom(
     tolerance: Tolerance,
     dims: &Dimensions,
     plan: Option<&TipPlan>,
+    favoured: &Favoured,
 ) -> Vec<Symbol> {
     let mut out = Vec::with_capacity(skeleton.len() * 4);
     let mut turtle = TurtleState::start(trunk_radius_m);
@@ -394,6 +455,7 @@ pub(crate) fn write_axiom(
                     target,
                     tolerance.position_budget(target),
                     dims,
+                    favoured,
                     &mut out,
                 );
                 push_children(skeleton, id, &mut work);
