@@ -5,7 +5,8 @@
 //! L-system, so each skeleton is also stored as one. The paper's format is
 //! kept — `recursions`, `axiom`, `rules`, `trunk` anchor and radius,
 //! `dimensions` defaults, `degrees` — and extended with a format version,
-//! per-internode radii (`!(w)`) and the stated error bound. The L-string uses
+//! per-internode radii (`!(w)`), the stated error bound and (version 2) a
+//! length unit, so that lengths print as integer millimetres. The L-string uses
 //! the standard 3D turtle of *The Algorithmic Beauty of Plants*, so any
 //! L-system tool can read it; `docs/lsjson.md` specifies the grammar and the
 //! frame conventions.

@@ -11,14 +11,17 @@
 //! the writer checks before accepting it: `|decoded − original| ≤ tolerance`
 //! for every node, whatever its depth.
 //!
-//! Each step is a roll `\`/`/` about the heading, then a pitch `&`/`^` about
-//! the (rolled) left axis, then `F(l)`: both angles are taken in the turtle's
-//! own frame, which has no pole. Numbers are printed with the fewest
-//! decimals that keep the node within tolerance: the writer tries the
-//! combinations of coarser and finer roundings of roll, pitch and length,
-//! cheapest first, and keeps the first whose decoded position is close
-//! enough. Zero angles are omitted and `!(w)` is written only when the
-//! decoded width would otherwise leave the radius tolerance.
+//! Each step is a turn, then a pitch `&`/`^` about the (turned) left axis,
+//! then `F(l)`: both angles are taken in the turtle's own frame, which has
+//! no pole. The turn is a roll `\`/`/` about the heading (on either side,
+//! the pitch changing sign) or a yaw `+`/`-` about the up axis, whichever
+//! prints shortest. Numbers are printed with the fewest decimals that keep
+//! the node within tolerance, lengths in the document's unit (1 mm for a
+//! 1 mm tolerance, so they print as integers): the writer tries the
+//! combinations of coarser and finer roundings of turn, pitch and length,
+//! cheapest first in JSON bytes, and keeps the first whose decoded position
+//! is close enough. Zero angles are omitted and `!(w)` is written only when
+//! the decoded width would otherwise leave the radius tolerance.
 
 use glam::DVec3;
 
