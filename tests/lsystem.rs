@@ -70,6 +70,15 @@ fn synthetic_trees_within_bound_and_small() {
         assert!(ls.error().max_m <= 0.001);
         // Table 4.6: tree1 is 200 KB; the target is 5x smaller.
         assert!(text.len() < 40_000, "{} bytes", text.len());
+        // Lengths in millimetres, the cheapest turn and a second pass that
+        // favours rule parameters: about 13.8 B per internode (16 B with
+        // lengths in metres and rolls only).
+        assert!(
+            text.len() <= 15 * s.internode_count(),
+            "{} bytes for {} internodes",
+            text.len(),
+            s.internode_count()
+        );
     }
 }
 
@@ -361,4 +370,45 @@ fn extreme_parameters_print_within_the_readers_limit() {
     let again = parse(&printed).unwrap();
     assert!(again == ls, "print/parse round trip: {printed}");
     assert_eq!(decode_text(&printed).unwrap(), decode_text(&text).unwrap());
+}
+
+#[test]
+fn lengths_are_in_the_documents_unit_and_version_1_still_reads() {
+    let v2 = |unit: &str, axiom: &str| {
+        format!(
+            r#"{{"format":"lsjson","version":2,"degrees":true,"recursions":0,
+            "trunk":{{"anchor":[10,20,30],"radius":0.5}},
+            "dimensions":{{{unit}"forward":250,"rotation":90,"roll":90}},
+            "error":{{"bound_m":0.001,"radius_bound_m":0.001,"radius_bound_rel":0,"max_m":0,"mean_m":0,"radius_max_m":0}},
+            "axiom":"{axiom}"}}"#
+        )
+    };
+    let in_mm = decode_text(&v2(r#""unit_m":0.001,"#, "!(20)F(1000)+(90)F(500)F")).unwrap();
+    let in_m = decode_text(&doc(0, "!(.02)F(1)+(90)F(.5)F(.25)", "")).unwrap();
+    assert_eq!(in_mm.len(), 4);
+    let expected = [
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, 1.0),
+        (0.5, 0.0, 1.0),
+        (0.75, 0.0, 1.0),
+    ];
+    for (id, (x, y, z)) in in_mm.ids().zip(expected) {
+        let at = in_mm.position(id);
+        assert!(at.distance(Vec3::new(x, y, z)) < 1e-6, "{id:?} at {at}");
+        assert!(at.distance(in_m.position(id)) < 1e-6);
+        assert_eq!(in_mm.radius(id), in_m.radius(id));
+    }
+    assert_eq!(in_mm.radius(NodeId::from_index(1)), 0.02);
+    // Version 2 needs a positive unit; version 1 has none.
+    for unit in ["", r#""unit_m":0,"#, r#""unit_m":-1,"#] {
+        assert!(decode_text(&v2(unit, "F")).is_err(), "{unit}");
+    }
+    let v1_with_unit = doc(0, "F", "").replace(r#""forward""#, r#""unit_m":0.001,"forward""#);
+    assert!(matches!(
+        parse(&v1_with_unit),
+        Err(LsError::Invalid {
+            field: "dimensions.unit_m",
+            ..
+        })
+    ));
 }

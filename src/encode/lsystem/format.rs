@@ -12,8 +12,9 @@ use crate::skeleton::Anchor;
 
 /// Value of the `format` field.
 pub(crate) const FORMAT: &str = "lsjson";
-/// The LsJSON version this build writes and reads.
-pub(crate) const VERSION: u32 = 1;
+/// The LsJSON version this build writes. It also reads version 1, which
+/// has no length unit (`dimensions.unit_m` = 1).
+pub(crate) const VERSION: u32 = 2;
 /// Longest number literal the lexer accepts, in characters.
 const MAX_NUMBER_CHARS: usize = 40;
 
@@ -69,9 +70,12 @@ pub struct ErrorBound {
     pub generalisation_max_m: f64,
 }
 
-/// Default parameter values for symbols written without one.
+/// Default parameter values for symbols written without one, and the
+/// length unit of `F` and `!` parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Dimensions {
+    /// Metres per length unit (1 in version 1).
+    pub(crate) unit_m: f64,
     pub(crate) forward: f64,
     pub(crate) rotation: f64,
     pub(crate) roll: f64,
@@ -120,6 +124,8 @@ struct RawTrunk {
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawDimensions {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    unit_m: Option<f64>,
     forward: f64,
     rotation: f64,
     roll: f64,
@@ -139,6 +145,7 @@ impl LsJson {
                 crs: self.anchor.crs.clone(),
             },
             dimensions: RawDimensions {
+                unit_m: Some(self.dimensions.unit_m),
                 forward: self.dimensions.forward,
                 rotation: self.dimensions.rotation,
                 roll: self.dimensions.roll,
@@ -171,12 +178,30 @@ impl LsJson {
     }
 
     fn from_raw(raw: RawLsJson) -> Result<LsJson, LsError> {
-        if raw.format != FORMAT || raw.version != VERSION {
+        if raw.format != FORMAT || !(1..=VERSION).contains(&raw.version) {
             return Err(LsError::Version {
                 format: raw.format,
                 version: raw.version,
             });
         }
+        let unit_m = match (raw.version, raw.dimensions.unit_m) {
+            (1, None) => 1.0,
+            (1, Some(_)) => {
+                return Err(LsError::Invalid {
+                    field: "dimensions.unit_m",
+                    reason: "is not part of version 1",
+                });
+            }
+            (_, unit) => unit.ok_or(LsError::Invalid {
+                field: "dimensions.unit_m",
+                reason: "is required from version 2",
+            })?,
+        };
+        require(
+            unit_m.is_finite() && unit_m > 0.0,
+            "dimensions.unit_m",
+            "must be finite and positive",
+        )?;
         let anchor = DVec3::from_array(raw.trunk.anchor);
         require(anchor.is_finite(), "trunk.anchor", "must be finite")?;
         let radius = raw.trunk.radius;
@@ -224,6 +249,7 @@ impl LsJson {
             },
             trunk_radius_m: radius,
             dimensions: Dimensions {
+                unit_m,
                 forward: d.forward,
                 rotation: d.rotation,
                 roll: d.roll,

@@ -21,9 +21,9 @@ use std::collections::BTreeMap;
 
 use glam::DVec3;
 
-use super::format::Symbol;
+use super::format::{Dimensions, Symbol};
 use super::turtle::TurtleState;
-use super::write::{Tolerance, WRITE_DIMENSIONS, roll_pitch, shortest_within, simulate};
+use super::write::{Tolerance, roll_pitch, shortest_within, simulate};
 use crate::skeleton::{NodeId, Skeleton};
 
 /// Rule letters, for 1, 2, … generalised steps (`F` is the turtle's).
@@ -66,6 +66,7 @@ impl TipPlan {
         targets: &[DVec3],
         k: usize,
         tolerance: Tolerance,
+        unit_m: f64,
     ) -> TipPlan {
         let k = k.min(MAX_GENERALISED_STEPS);
         let chains = tip_chains(skeleton, k);
@@ -87,8 +88,10 @@ impl TipPlan {
             }
         }
         for i in 1..=steps {
-            plan.rules
-                .insert(RULE_LETTERS[i - 1], rule_body(&measured, i, tolerance));
+            plan.rules.insert(
+                RULE_LETTERS[i - 1],
+                rule_body(&measured, i, tolerance, unit_m),
+            );
         }
         plan
     }
@@ -111,6 +114,7 @@ impl TipPlan {
         target: DVec3,
         letter: u8,
         tolerance: Tolerance,
+        dims: &Dimensions,
         out: &mut Vec<Symbol>,
     ) {
         let offset = target - turtle.position;
@@ -122,14 +126,14 @@ impl TipPlan {
             let roll = shortest_within(roll, half_width.max(0.0));
             if roll != 0.0 {
                 let s = Symbol::with(if roll > 0.0 { b'\\' } else { b'/' }, roll.abs());
-                turtle.apply(s, &WRITE_DIMENSIONS, true);
+                turtle.apply(s, dims, true);
                 out.push(s);
             }
         }
         let s = Symbol::bare(letter);
         out.push(s);
         let rules = |c: u8| self.rules.get(&c).map(Vec::as_slice);
-        simulate(turtle, &[s], &rules, &mut Vec::new());
+        simulate(turtle, &[s], &rules, dims, &mut Vec::new());
     }
 }
 
@@ -203,7 +207,8 @@ fn measure(skeleton: &Skeleton, targets: &[DVec3], chain: &Chain) -> Vec<Step> {
 
 /// Body of `T_i`: the mean of step `i` (from the tip) over chains that have
 /// it, and, for `i ≥ 2`, the mean roll into step `i − 1` and `T_{i−1}`.
-fn rule_body(measured: &[Vec<Step>], i: usize, tolerance: Tolerance) -> Vec<Symbol> {
+/// Lengths are written in units of `unit_m` metres.
+fn rule_body(measured: &[Vec<Step>], i: usize, tolerance: Tolerance, unit_m: f64) -> Vec<Symbol> {
     let with_step: Vec<&Vec<Step>> = measured.iter().filter(|m| m.len() >= i).collect();
     let n = with_step.len().max(1) as f64;
     let mean = |f: fn(&Step) -> f64| with_step.iter().map(|m| f(&m[i - 1])).sum::<f64>() / n;
@@ -214,10 +219,13 @@ fn rule_body(measured: &[Vec<Step>], i: usize, tolerance: Tolerance) -> Vec<Symb
     let mut body = vec![
         Symbol::with(
             b'!',
-            shortest_within(radius, tolerance.radius_allowed(radius)),
+            shortest_within(radius / unit_m, tolerance.radius_allowed(radius) / unit_m),
         ),
         Symbol::with(b'&', shortest_within(pitch, angle_half_width)),
-        Symbol::with(b'F', shortest_within(length, tolerance.position_m)),
+        Symbol::with(
+            b'F',
+            shortest_within(length / unit_m, tolerance.position_m / unit_m),
+        ),
     ];
     if i >= 2 {
         let (sin, cos) = with_step.iter().fold((0.0, 0.0), |(s, c), m| {

@@ -5,7 +5,8 @@
 //! L-system, so each skeleton is also stored as one. The paper's format is
 //! kept — `recursions`, `axiom`, `rules`, `trunk` anchor and radius,
 //! `dimensions` defaults, `degrees` — and extended with a format version,
-//! per-internode radii (`!(w)`) and the stated error bound. The L-string uses
+//! per-internode radii (`!(w)`), the stated error bound and (version 2) a
+//! length unit, so that lengths print as integer millimetres. The L-string uses
 //! the standard 3D turtle of *The Algorithmic Beauty of Plants*, so any
 //! L-system tool can read it; `docs/lsjson.md` specifies the grammar and the
 //! frame conventions.
@@ -59,7 +60,7 @@ pub use read::decode;
 
 use format::{Dimensions, Symbol};
 use generalise::TipPlan;
-use write::{Tolerance, shortest_within, write_axiom};
+use write::{Favoured, Tolerance, length_unit, shortest_within, write_axiom, write_dimensions};
 
 use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 
@@ -153,7 +154,9 @@ pub enum LsError {
     #[error("LsJSON: {0}")]
     Json(#[from] serde_json::Error),
     /// Not an LsJSON version this build reads.
-    #[error("LsJSON: expected format \"lsjson\" version 1, found \"{format}\" version {version}")]
+    #[error(
+        "LsJSON: expected format \"lsjson\" version 1 or 2, found \"{format}\" version {version}"
+    )]
     Version {
         /// The `format` field.
         format: String,
@@ -251,33 +254,83 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
         radius_m: non_negative(opts.radius_tolerance_m),
         radius_rel: non_negative(opts.radius_tolerance_rel),
     };
+    let dims = write_dimensions(length_unit(tolerance.position_m));
     let plan = opts
         .generalise_tips
         .filter(|&k| k > 0)
-        .map(|k| TipPlan::new(&canon, &targets, k, tolerance));
+        .map(|k| TipPlan::new(&canon, &targets, k, tolerance, dims.unit_m));
     let root_radius = f64::from(canon.radius(NodeId::ROOT));
-    let trunk_radius_m =
-        shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0));
-    let mut axiom = write_axiom(&canon, &targets, trunk_radius_m, tolerance, plan.as_ref());
-    let mut rules = plan.as_ref().map(|p| p.rules.clone()).unwrap_or_default();
-    let dimensions = use_defaults(&mut axiom, rules.values_mut());
-    let mut depth = rules::rule_depths(&rules);
-    rules::compress(&mut axiom, &mut rules, &mut depth);
-    let mut ls = LsJson {
-        recursions: depth.values().copied().max().unwrap_or(0),
-        axiom,
-        rules,
+    let writing = Writing {
+        canon: &canon,
+        targets,
         anchor: Anchor {
             origin: anchor,
             crs: canon.anchor().crs.clone(),
         },
-        trunk_radius_m,
-        dimensions,
-        degrees: true,
-        error: ErrorBound::default(),
+        trunk_radius_m: shortest_within(root_radius, tolerance.radius_budget(root_radius).max(0.0)),
+        tolerance,
+        dims,
+        plan,
     };
-    ls.error = measure(&canon, &ls, tolerance, plan.as_ref());
+    // A second pass prefers the parameters that the first turned into
+    // rules or defaults; it is kept only when it is shorter.
+    let first = writing.document(&Favoured::default());
+    let second = writing.document(&Favoured::from(first.rules.values(), &first.dimensions));
+    let mut ls = if second.to_json().len() < first.to_json().len() {
+        second
+    } else {
+        first
+    };
+    ls.error = measure(&canon, &ls, tolerance, writing.plan.as_ref());
     ls
+}
+
+/// What every pass of the writer shares.
+struct Writing<'a> {
+    /// The skeleton in canonical order.
+    canon: &'a Skeleton,
+    /// Node positions relative to the root.
+    targets: Vec<DVec3>,
+    anchor: Anchor,
+    trunk_radius_m: f64,
+    tolerance: Tolerance,
+    /// The writer's dimensions, with the length unit.
+    dims: Dimensions,
+    plan: Option<TipPlan>,
+}
+
+impl Writing<'_> {
+    /// Writes the document, preferring `favoured` parameters, then fills in
+    /// the defaults and rules; the errors are not measured yet.
+    fn document(&self, favoured: &Favoured) -> LsJson {
+        let mut axiom = write_axiom(
+            self.canon,
+            &self.targets,
+            self.trunk_radius_m,
+            self.tolerance,
+            &self.dims,
+            self.plan.as_ref(),
+            favoured,
+        );
+        let mut rules = self
+            .plan
+            .as_ref()
+            .map(|p| p.rules.clone())
+            .unwrap_or_default();
+        let dimensions = use_defaults(&mut axiom, rules.values_mut(), self.dims.unit_m);
+        let mut depth = rules::rule_depths(&rules);
+        rules::compress(&mut axiom, &mut rules, &mut depth);
+        LsJson {
+            recursions: depth.values().copied().max().unwrap_or(0),
+            axiom,
+            rules,
+            anchor: self.anchor.clone(),
+            trunk_radius_m: self.trunk_radius_m,
+            dimensions,
+            degrees: true,
+            error: ErrorBound::default(),
+        }
+    }
 }
 
 /// A tolerance as `f64` at the decimal value the user typed (0.001, not
@@ -296,6 +349,7 @@ fn non_negative(v: f32) -> f64 {
 fn use_defaults<'a>(
     axiom: &mut Vec<Symbol>,
     rules: impl Iterator<Item = &'a mut Vec<Symbol>>,
+    unit_m: f64,
 ) -> Dimensions {
     let mut rules: Vec<&mut Vec<Symbol>> = rules.collect();
     let mode = |chars: &[u8], all: &[&Vec<Symbol>]| {
@@ -331,6 +385,7 @@ fn use_defaults<'a>(
         }
     }
     Dimensions {
+        unit_m,
         forward: forward.unwrap_or(1.0),
         rotation: rotation.unwrap_or(0.0),
         roll: roll.unwrap_or(0.0),

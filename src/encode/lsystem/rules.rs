@@ -22,8 +22,28 @@ fn key(s: &Symbol) -> Key {
     (s.ch, s.param.map(f64::to_bits))
 }
 
+/// Bytes of a symbol in the JSON document (a backslash is escaped).
 fn cost(s: &Symbol) -> usize {
-    print(std::slice::from_ref(s)).len()
+    print(std::slice::from_ref(s)).len() + usize::from(s.ch == b'\\')
+}
+
+/// Distinct symbols, numbered in order of first appearance, so that the
+/// search below counts small integers instead of hashing symbols.
+#[derive(Default)]
+struct Symbols {
+    table: Vec<Symbol>,
+    cost: Vec<usize>,
+    index: HashMap<Key, u32>,
+}
+
+impl Symbols {
+    fn id(&mut self, s: &Symbol) -> u32 {
+        *self.index.entry(key(s)).or_insert_with(|| {
+            self.table.push(*s);
+            self.cost.push(cost(s));
+            (self.table.len() - 1) as u32
+        })
+    }
 }
 
 /// Replaces repeated symbols and pairs of `axiom` by rules, using letters
@@ -39,74 +59,68 @@ pub(crate) fn compress(
     let mut free = (b'A'..=b'Z')
         .chain(b'a'..=b'z')
         .filter(|c| !b"Ff".contains(c) && !taken.contains(c));
-    let mut costs = HashMap::new();
-    loop {
-        let Some(pattern) = best_pattern(axiom, &mut costs) else {
-            return;
-        };
+    let mut symbols = Symbols::default();
+    let mut ids: Vec<u32> = axiom.iter().map(|s| symbols.id(s)).collect();
+    while let Some(pattern) = best_pattern(&ids, &symbols) {
         let Some(letter) = free.next() else {
-            return;
+            break;
         };
-        let body_depth = pattern
+        let body: Vec<Symbol> = pattern.iter().map(|&i| symbols.table[i as usize]).collect();
+        let body_depth = body
             .iter()
             .filter_map(|s| depth.get(&s.ch))
             .max()
             .copied()
             .unwrap_or(0);
-        replace(axiom, &pattern, letter);
+        replace(&mut ids, &pattern, symbols.id(&Symbol::bare(letter)));
         depth.insert(letter, body_depth + 1);
-        rules.insert(letter, pattern);
+        rules.insert(letter, body);
     }
+    *axiom = ids.iter().map(|&i| symbols.table[i as usize]).collect();
 }
 
 /// The single symbol or adjacent pair whose replacement saves most bytes,
-/// if any saves some. Ties go to the smallest key, so the result does not
-/// depend on hash order. `costs` caches printed lengths across calls.
-fn best_pattern(axiom: &[Symbol], costs: &mut HashMap<Key, usize>) -> Option<Vec<Symbol>> {
-    let mut singles: HashMap<Key, usize> = HashMap::new();
-    let mut pairs: HashMap<(Key, Key), usize> = HashMap::new();
-    // Pairs are counted without overlap inside runs such as `aaa`.
+/// if any saves some. Ties go to the smallest ids, so the result does not
+/// depend on hash order. Pairs are counted by sorting, without overlap
+/// inside runs such as `aaa`.
+fn best_pattern(ids: &[u32], symbols: &Symbols) -> Option<Vec<u32>> {
+    let mut singles = vec![0usize; symbols.table.len()];
+    let mut pairs: Vec<u64> = Vec::with_capacity(ids.len());
     let mut last_counted = usize::MAX;
-    for (i, s) in axiom.iter().enumerate() {
-        let k = key(s);
-        costs.entry(k).or_insert_with(|| cost(s));
-        if s.param.is_some() {
-            *singles.entry(k).or_default() += 1;
+    for (i, &id) in ids.iter().enumerate() {
+        if symbols.table[id as usize].param.is_some() {
+            singles[id as usize] += 1;
         }
         if i == 0 {
             continue;
         }
-        let pair = (key(&axiom[i - 1]), k);
-        let overlaps = last_counted == i - 1 && pair == (key(&axiom[i - 2]), key(&axiom[i - 1]));
+        let overlaps = last_counted == i - 1 && ids[i - 2] == ids[i - 1] && ids[i - 1] == id;
         if !overlaps {
-            *pairs.entry(pair).or_default() += 1;
+            pairs.push((u64::from(ids[i - 1]) << 32) | u64::from(id));
             last_counted = i;
         }
     }
+    pairs.sort_unstable();
+    let cost = |id: u32| symbols.cost[id as usize];
     let singles = singles
-        .into_iter()
-        .map(|(k, n)| (saving(n, costs[&k]), [Some(k), None]));
-    let pairs = pairs
-        .into_iter()
-        .map(|((a, b), n)| (saving(n, costs[&a] + costs[&b]), [Some(a), Some(b)]));
-    let (gain, keys) = singles
+        .iter()
+        .enumerate()
+        .filter(|&(_, &n)| n > 0)
+        .map(|(id, &n)| (saving(n, cost(id as u32)), vec![id as u32]));
+    let pairs = pairs.chunk_by(|a, b| a == b).map(|run| {
+        let (a, b) = ((run[0] >> 32) as u32, run[0] as u32);
+        (saving(run.len(), cost(a) + cost(b)), vec![a, b])
+    });
+    let (gain, pattern) = singles
         .chain(pairs)
-        .max_by_key(|&(gain, keys)| (gain, std::cmp::Reverse(keys)))?;
-    (gain > 0).then(|| keys.into_iter().flatten().map(symbol).collect())
+        .max_by(|x, y| x.0.cmp(&y.0).then_with(|| y.1.cmp(&x.1)))?;
+    (gain > 0).then_some(pattern)
 }
 
 /// Bytes saved by replacing `count` occurrences of a pattern of `len` bytes
 /// by one letter, less the rule's own cost.
 fn saving(count: usize, len: usize) -> i64 {
     (count * len.saturating_sub(1)) as i64 - (len + RULE_OVERHEAD) as i64
-}
-
-/// The symbol a key stands for.
-fn symbol((ch, param): Key) -> Symbol {
-    Symbol {
-        ch,
-        param: param.map(f64::from_bits),
-    }
 }
 
 /// Recursions each rule letter needs to expand fully: 1 + the most any
@@ -128,21 +142,19 @@ pub(crate) fn rule_depths(rules: &BTreeMap<u8, Vec<Symbol>>) -> HashMap<u8, u32>
 }
 
 /// Replaces every non-overlapping occurrence of `pattern`, left to right.
-fn replace(axiom: &mut Vec<Symbol>, pattern: &[Symbol], letter: u8) {
-    let keys: Vec<Key> = pattern.iter().map(key).collect();
-    let mut out = Vec::with_capacity(axiom.len());
+fn replace(ids: &mut Vec<u32>, pattern: &[u32], letter: u32) {
+    let mut out = Vec::with_capacity(ids.len());
     let mut i = 0;
-    while i < axiom.len() {
-        let end = i + keys.len();
-        if end <= axiom.len() && axiom[i..end].iter().map(key).eq(keys.iter().copied()) {
-            out.push(Symbol::bare(letter));
-            i = end;
+    while i < ids.len() {
+        if ids[i..].starts_with(pattern) {
+            out.push(letter);
+            i += pattern.len();
         } else {
-            out.push(axiom[i]);
+            out.push(ids[i]);
             i += 1;
         }
     }
-    *axiom = out;
+    *ids = out;
 }
 
 #[cfg(test)]

@@ -79,7 +79,8 @@ impl TurtleState {
     }
 
     /// Applies one symbol. Angles are degrees when `degrees`, else radians;
-    /// a symbol without a parameter takes its default from `dims`.
+    /// a symbol without a parameter takes its default from `dims`. Lengths
+    /// (`F`, `!`) are in units of `dims.unit_m` metres; the state is in metres.
     pub(crate) fn apply(&mut self, s: Symbol, dims: &Dimensions, degrees: bool) -> Effect {
         let angle = |default: f64| {
             let a = s.param.unwrap_or(default);
@@ -87,7 +88,7 @@ impl TurtleState {
         };
         match s.ch {
             b'F' => {
-                self.forward(s.param.unwrap_or(dims.forward));
+                self.forward(s.param.unwrap_or(dims.forward) * dims.unit_m);
                 return Effect::Drew;
             }
             b'+' => self.yaw(angle(dims.rotation)),
@@ -97,7 +98,11 @@ impl TurtleState {
             b'^' => self.pitch(-angle(dims.rotation)),
             b'\\' => self.roll(angle(dims.roll)),
             b'/' => self.roll(-angle(dims.roll)),
-            b'!' => self.width_m = s.param.unwrap_or(self.width_m),
+            b'!' => {
+                if let Some(w) = s.param {
+                    self.width_m = w * dims.unit_m;
+                }
+            }
             b'[' => return Effect::Push,
             b']' => return Effect::Pop,
             _ => {}

@@ -11,14 +11,17 @@
 //! the writer checks before accepting it: `|decoded − original| ≤ tolerance`
 //! for every node, whatever its depth.
 //!
-//! Each step is a roll `\`/`/` about the heading, then a pitch `&`/`^` about
-//! the (rolled) left axis, then `F(l)`: both angles are taken in the turtle's
-//! own frame, which has no pole. Numbers are printed with the fewest
-//! decimals that keep the node within tolerance: the writer tries the
-//! combinations of coarser and finer roundings of roll, pitch and length,
-//! cheapest first, and keeps the first whose decoded position is close
-//! enough. Zero angles are omitted and `!(w)` is written only when the
-//! decoded width would otherwise leave the radius tolerance.
+//! Each step is a turn, then a pitch `&`/`^` about the (turned) left axis,
+//! then `F(l)`: both angles are taken in the turtle's own frame, which has
+//! no pole. The turn is a roll `\`/`/` about the heading (on either side,
+//! the pitch changing sign) or a yaw `+`/`-` about the up axis, whichever
+//! prints shortest. Numbers are printed with the fewest decimals that keep
+//! the node within tolerance, lengths in the document's unit (1 mm for a
+//! 1 mm tolerance, so they print as integers): the writer tries the
+//! combinations of coarser and finer roundings of turn, pitch and length,
+//! cheapest first in JSON bytes, and keeps the first whose decoded position
+//! is close enough. Zero angles are omitted and `!(w)` is written only when
+//! the decoded width would otherwise leave the radius tolerance.
 
 use glam::DVec3;
 
@@ -29,13 +32,31 @@ use crate::skeleton::{NodeId, Skeleton};
 
 /// Finest rounding tried before printing a number exactly.
 const MAX_DECIMALS: usize = 12;
-/// Dimensions the writer assumes while writing; defaults are only filled in
-/// afterwards, for parameters that already equal them.
-pub(crate) const WRITE_DIMENSIONS: Dimensions = Dimensions {
-    forward: 1.0,
-    rotation: 0.0,
-    roll: 0.0,
-};
+/// Dimensions the writer assumes while writing, with lengths in units of
+/// `unit_m`; defaults are only filled in afterwards, for parameters that
+/// already equal them.
+pub(crate) fn write_dimensions(unit_m: f64) -> Dimensions {
+    Dimensions {
+        unit_m,
+        forward: 1.0,
+        rotation: 0.0,
+        roll: 0.0,
+    }
+}
+
+/// The length unit for a position tolerance: the largest power of ten not
+/// above it (1 mm for 1 mm), so that lengths print as short integers;
+/// between 1 µm and 1 m.
+pub(crate) fn length_unit(tolerance_m: f64) -> f64 {
+    let exponent = if tolerance_m > 0.0 {
+        tolerance_m.log10().floor().clamp(-6.0, 0.0)
+    } else {
+        -6.0
+    };
+    format!("1e{exponent}")
+        .parse()
+        .expect("a power of ten parses")
+}
 
 /// Relative slack for the `f32` rounding of a decoded value of magnitude 1.
 const F32_SLACK: f64 = 1.0 / (1u64 << 23) as f64;
@@ -57,11 +78,12 @@ fn rounded(value: f64, decimals: usize) -> f64 {
         .expect("a formatted f64 parses")
 }
 
-/// Printed length of a parameter, in characters.
-fn printed_len(value: f64) -> usize {
+/// Bytes a symbol with parameter `value` takes in the JSON document:
+/// `c(value)`, and a backslash is escaped as `\\`.
+fn json_cost(ch: u8, value: f64) -> usize {
     let mut s = String::new();
     super::format::push_number(&mut s, value);
-    s.len()
+    s.len() + 3 + usize::from(ch == b'\\')
 }
 
 /// One way to print a quantity: the symbol (if any) and its cost in bytes.
@@ -85,7 +107,7 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
             let ch = if v > 0.0 { positive } else { negative };
             out.push(Choice {
                 symbol: Some(Symbol::with(ch, v.abs())),
-                cost: 3 + printed_len(v.abs()),
+                cost: json_cost(ch, v.abs()),
             });
             last = v;
         }
@@ -93,38 +115,139 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
             return out;
         }
     }
+    let ch = if angle_deg > 0.0 { positive } else { negative };
     out.push(Choice {
-        symbol: Some(Symbol::with(
-            if angle_deg > 0.0 { positive } else { negative },
-            angle_deg.abs(),
-        )),
-        cost: 3 + printed_len(angle_deg.abs()),
+        symbol: Some(Symbol::with(ch, angle_deg.abs())),
+        cost: json_cost(ch, angle_deg.abs()),
     });
     out
 }
 
-/// Roundings of an internode length, coarse to fine.
-fn length_choices(length_m: f64, fine_m: f64) -> Vec<Choice> {
+/// Roundings of an internode length in length units, coarse to fine.
+fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
     let mut out: Vec<Choice> = Vec::new();
     let mut last = f64::NAN;
     for k in 0..=MAX_DECIMALS {
-        let v = rounded(length_m, k);
+        let v = rounded(length, k);
         if v != last {
             out.push(Choice {
                 symbol: Some(Symbol::with(b'F', v)),
-                cost: 3 + printed_len(v),
+                cost: json_cost(b'F', v),
             });
             last = v;
         }
-        if (v - length_m).abs() <= fine_m {
+        if (v - length).abs() <= fine {
             return out;
         }
     }
     out.push(Choice {
-        symbol: Some(Symbol::with(b'F', length_m)),
-        cost: 3 + printed_len(length_m),
+        symbol: Some(Symbol::with(b'F', length)),
+        cost: json_cost(b'F', length),
     });
     out
+}
+
+/// Yaw (about `U`, positive left) and then pitch (about the yawed `L`,
+/// positive down) in degrees that turn `turtle`'s heading onto `direction`
+/// (unit). Unlike [`roll_pitch`] it leaves the frame unrolled, and a small
+/// turn is two small angles.
+fn yaw_pitch(turtle: &TurtleState, direction: DVec3) -> (f64, f64) {
+    let h = direction.dot(turtle.heading);
+    let l = direction.dot(turtle.left);
+    let u = direction.dot(turtle.up);
+    (l.atan2(h).to_degrees(), (-u).atan2(h.hypot(l)).to_degrees())
+}
+
+/// The equivalent ways to turn the heading onto `direction` (unit) before a
+/// step of `length_m`, each as roundings of a first turn and of a pitch:
+/// roll then pitch with the roll within ±90°, the same with the roll on the
+/// other side (a `/` instead of an escaped `\\`, or a shorter number), and
+/// yaw then pitch. Roundings stop at an angle error that moves the node by
+/// `fine_m`; favoured angles are tried up to an error that moves it by
+/// `budget_m`.
+fn turn_choices(
+    turtle: &TurtleState,
+    direction: DVec3,
+    length_m: f64,
+    (fine_m, budget_m): (f64, f64),
+    favoured: &Favoured,
+) -> Vec<[Vec<Choice>; 2]> {
+    let to_deg = |distance_m: f64, lever_m: f64| (distance_m / lever_m.max(1e-300)).to_degrees();
+    let angle = |value: f64, positive: u8, negative: u8, lever_m: f64| {
+        let mut out = angle_choices(value, positive, negative, to_deg(fine_m, lever_m));
+        out.extend(favoured.near(value, positive, negative, to_deg(budget_m, lever_m)));
+        out
+    };
+    let (roll, pitch) = roll_pitch(turtle, direction, true);
+    let roll_lever = length_m * pitch.to_radians().sin().abs();
+    let roll_then_pitch = |roll: f64, pitch: f64| {
+        [
+            angle(roll, b'\\', b'/', roll_lever),
+            angle(pitch, b'&', b'^', length_m),
+        ]
+    };
+    let mut out = vec![roll_then_pitch(roll, pitch)];
+    if roll != 0.0 {
+        out.push(roll_then_pitch(roll - 180.0f64.copysign(roll), -pitch));
+    }
+    let (yaw, yaw_pitch) = yaw_pitch(turtle, direction);
+    out.push([
+        angle(yaw, b'+', b'-', length_m),
+        angle(yaw_pitch, b'&', b'^', length_m),
+    ]);
+    out
+}
+
+/// Parameters that an earlier pass printed as one rule letter or omitted
+/// as a default: the writer prefers them, at a cost of one byte, wherever
+/// one keeps the node within its budget, so that they get more frequent
+/// and the rules built afterwards pay more.
+#[derive(Debug, Default)]
+pub(crate) struct Favoured(Vec<Symbol>);
+
+impl Favoured {
+    /// The parametrised symbols of single-symbol rules, and the defaults of
+    /// `dims`, from an encoding written with these rules and dimensions.
+    pub(crate) fn from<'a>(
+        rules: impl Iterator<Item = &'a Vec<Symbol>>,
+        dims: &Dimensions,
+    ) -> Self {
+        let mut symbols: Vec<Symbol> = rules
+            .filter_map(|body| match body.as_slice() {
+                [s] if s.param.is_some() => Some(*s),
+                _ => None,
+            })
+            .collect();
+        symbols.push(Symbol::with(b'F', dims.forward));
+        for ch in *b"&^+-" {
+            symbols.push(Symbol::with(ch, dims.rotation));
+        }
+        symbols.extend([
+            Symbol::with(b'\\', dims.roll),
+            Symbol::with(b'/', dims.roll),
+        ]);
+        Favoured(symbols)
+    }
+
+    /// Favoured symbols for a quantity `value` written with `positive` (or
+    /// `negative` for negative values), within `reach` of it.
+    fn near(&self, value: f64, positive: u8, negative: u8, reach: f64) -> Vec<Choice> {
+        self.0
+            .iter()
+            .filter_map(|s| {
+                let p = s.param?;
+                let signed = match s.ch {
+                    c if c == positive => p,
+                    c if c == negative => -p,
+                    _ => return None,
+                };
+                ((signed - value).abs() <= reach).then_some(Choice {
+                    symbol: Some(*s),
+                    cost: 1,
+                })
+            })
+            .collect()
+    }
 }
 
 /// Roll (about `H`) and pitch (about the rolled `L`, positive down) in
@@ -155,6 +278,8 @@ pub(crate) fn write_internode(
     turtle: &mut TurtleState,
     target: DVec3,
     budget_m: f64,
+    dims: &Dimensions,
+    favoured: &Favoured,
     out: &mut Vec<Symbol>,
 ) -> f64 {
     let offset = target - turtle.position;
@@ -162,33 +287,24 @@ pub(crate) fn write_internode(
     let budget = budget_m.max(0.0);
     // A rounding whose own error is this small counts as exact.
     let fine_m = budget * 1e-2;
-    let (rolls, pitches) = if length > 0.0 {
-        let (roll, pitch) = roll_pitch(turtle, offset / length, true);
-        let fine_pitch = (fine_m / length).to_degrees();
-        let sin_pitch = pitch.to_radians().sin().abs().max(1e-300);
-        let fine_roll = (fine_m / (length * sin_pitch)).to_degrees();
-        (
-            angle_choices(roll, b'\\', b'/', fine_roll),
-            angle_choices(pitch, b'&', b'^', fine_pitch),
-        )
+    let turns = if length > 0.0 {
+        turn_choices(turtle, offset / length, length, (fine_m, budget), favoured)
     } else {
-        (
-            vec![Choice {
-                symbol: None,
-                cost: 0,
-            }],
-            vec![Choice {
-                symbol: None,
-                cost: 0,
-            }],
-        )
+        let none = Choice {
+            symbol: None,
+            cost: 0,
+        };
+        vec![[vec![none], vec![none]]]
     };
-    let lengths = length_choices(length, fine_m);
+    let mut lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
+    lengths.extend(favoured.near(length / dims.unit_m, b'F', b'F', budget / dims.unit_m));
     let mut combos: Vec<(usize, Choice, Choice, Choice)> = Vec::new();
-    for &r in &rolls {
-        for &p in &pitches {
-            for &f in &lengths {
-                combos.push((r.cost + p.cost + f.cost, r, p, f));
+    for [turn, pitches] in &turns {
+        for &r in turn {
+            for &p in pitches {
+                for &f in &lengths {
+                    combos.push((r.cost + p.cost + f.cost, r, p, f));
+                }
             }
         }
     }
@@ -196,7 +312,7 @@ pub(crate) fn write_internode(
     let simulate = |(_, r, p, f): &(usize, Choice, Choice, Choice)| {
         let mut t = *turtle;
         for s in [r.symbol, p.symbol, f.symbol].into_iter().flatten() {
-            t.apply(s, &WRITE_DIMENSIONS, true);
+            t.apply(s, dims, true);
         }
         (t, t.position.distance(target))
     };
@@ -227,6 +343,7 @@ fn write_width(
     skeleton: &Skeleton,
     id: NodeId,
     tolerance: Tolerance,
+    dims: &Dimensions,
     out: &mut Vec<Symbol>,
 ) {
     let interval = |n: NodeId| {
@@ -247,9 +364,9 @@ fn write_width(
         (lo, hi) = (l.max(lo), h.min(hi));
         node = next;
     }
-    let w = shortest_within((lo + hi) / 2.0, (hi - lo) / 2.0).max(0.0);
-    let s = Symbol::with(b'!', w);
-    turtle.apply(s, &WRITE_DIMENSIONS, true);
+    let w = shortest_within((lo + hi) / 2.0 / dims.unit_m, (hi - lo) / 2.0 / dims.unit_m);
+    let s = Symbol::with(b'!', w.max(0.0));
+    turtle.apply(s, dims, true);
     out.push(s);
 }
 
@@ -302,7 +419,9 @@ pub(crate) fn write_axiom(
     targets: &[DVec3],
     trunk_radius_m: f64,
     tolerance: Tolerance,
+    dims: &Dimensions,
     plan: Option<&TipPlan>,
+    favoured: &Favoured,
 ) -> Vec<Symbol> {
     let mut out = Vec::with_capacity(skeleton.len() * 4);
     let mut turtle = TurtleState::start(trunk_radius_m);
@@ -327,16 +446,19 @@ pub(crate) fn write_axiom(
                         target,
                         rule,
                         tolerance,
+                        dims,
                         &mut out,
                     );
                     continue;
                 }
                 let target = targets[id.index()];
-                write_width(&mut turtle, skeleton, id, tolerance, &mut out);
+                write_width(&mut turtle, skeleton, id, tolerance, dims, &mut out);
                 write_internode(
                     &mut turtle,
                     target,
                     tolerance.position_budget(target),
+                    dims,
+                    favoured,
                     &mut out,
                 );
                 push_children(skeleton, id, &mut work);
@@ -366,12 +488,13 @@ pub(crate) fn simulate<'r>(
     turtle: &mut TurtleState,
     symbols: &[Symbol],
     rules: &dyn Fn(u8) -> Option<&'r [Symbol]>,
+    dims: &Dimensions,
     drawn: &mut Vec<DVec3>,
 ) {
     for &s in symbols {
         if let Some(body) = rules(s.ch) {
-            simulate(turtle, body, rules, drawn);
-        } else if turtle.apply(s, &WRITE_DIMENSIONS, true) == Effect::Drew {
+            simulate(turtle, body, rules, dims, drawn);
+        } else if turtle.apply(s, dims, true) == Effect::Drew {
             drawn.push(turtle.position);
         }
     }
