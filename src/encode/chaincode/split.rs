@@ -1,4 +1,4 @@
-//! The split-stream interpolative form (container kind 2): the same
+//! The split-stream interpolative forms (container kinds 2 and 3): the same
 //! interpolative machinery as chain-code paper §3.3 (BWT, MTF, cumulative
 //! sums, binary interpolative coding), applied to separate streams instead
 //! of one symbol string.
@@ -11,12 +11,18 @@
 //! coded as a correction), and the terminators in a stream of their own,
 //! shrinks those codes by about a fifth; splitting the radius gaps into tip
 //! radii and along-branch increases (mostly zero) saves another fifth of the
-//! radius bits. Measured figures are in `docs/chaincode.md` §9.
+//! radius bits. Kind 3 (container version 2) codes the terminators as
+//! tip bits, fork bits and lateral counts (their order-0 entropy, which BWT
+//! and MTF do not reach on reconstructed trees) and predicts each lateral's
+//! base radius from its fork node when that is shorter. Measured figures are
+//! in `docs/chaincode.md` §9.
 //!
 //! The form is lossless for every code whose internodes write their moves
 //! clustered by axis (`push_moves` in the encoder) or as the cancelling pair
 //! `0 3` before a fork symbol, which is every code [`super::encode`] and
 //! [`super::reduce_lod`] produce. Any other code is written in kind 1.
+//! Kind 3 relies on the canonical `0 3` pair: only where a fork marker could
+//! stand, so the decoder restores it without a structure item.
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::container::{best_radius_mapping, cumulative, differences, unzigzag, zigzag};
@@ -113,6 +119,44 @@ fn put_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[u64]) {
     interpolative::encode_into(bits, &sums, max_gap);
 }
 
+/// Largest centre of a branch-first correction stream (kind 3).
+const MAX_CENTRE: i64 = 3;
+
+/// Kind 3, a branch's first internode (coded in full): its corrections are
+/// not centred on 0 (laterals mostly grow upwards), so the stream stores a
+/// centre `c` in `-3..=3` (zigzagged, one byte) and codes `zigzag(v − c)`,
+/// with the `c` that codes shortest.
+fn put_centred_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, zigzagged: &[u64]) {
+    let shifted =
+        |c: i64| -> Vec<u64> { zigzagged.iter().map(|&z| zigzag(unzigzag(z) - c)).collect() };
+    let cost = |values: &[u64]| {
+        let (mut m, mut b) = (Vec::new(), BitWriter::new());
+        put_stream(&mut m, &mut b, values);
+        m.len() as u64 * 8 + b.bit_len()
+    };
+    let centre = (-MAX_CENTRE..=MAX_CENTRE)
+        .min_by_key(|&c| (cost(&shifted(c)), c.unsigned_abs()))
+        .unwrap_or(0);
+    put_varint(meta, zigzag(centre));
+    put_stream(meta, bits, &shifted(centre));
+}
+
+fn get_centre(cur: &mut ByteCursor<'_>) -> Result<i64, ChainError> {
+    let c = unzigzag(cur.varint()?);
+    if !(-MAX_CENTRE..=MAX_CENTRE).contains(&c) {
+        return Err(ChainError::Malformed("correction centre out of range"));
+    }
+    Ok(c)
+}
+
+/// Inverts the centring of [`put_centred_stream`]; values out of range are
+/// left for `join` to refuse.
+fn uncentre(stream: &mut [u64], centre: i64) {
+    for z in stream {
+        *z = zigzag(unzigzag(*z).saturating_add(centre));
+    }
+}
+
 /// Metadata of one stream: `(max_gap, last sum)`.
 fn get_meta(cur: &mut ByteCursor<'_>) -> Result<(u64, u64), ChainError> {
     Ok((cur.varint()?, cur.varint()?))
@@ -191,8 +235,12 @@ fn build(code: &ChainCode, form: Form) -> Option<(Vec<u8>, [u64; 3])> {
         Form::Kind3 => put_structure_bits(&mut meta, &mut bits, &streams.structure),
     }
     let structure_bits = bits.bit_len();
-    for stream in streams.corrections.iter().flatten() {
-        put_stream(&mut meta, &mut bits, stream);
+    for (k, stream) in streams.corrections.iter().flatten().enumerate() {
+        if form == Form::Kind3 && k < 3 {
+            put_centred_stream(&mut meta, &mut bits, stream);
+        } else {
+            put_stream(&mut meta, &mut bits, stream);
+        }
     }
     let correction_bits = bits.bit_len() - structure_bits;
 
@@ -334,8 +382,12 @@ pub(crate) fn decompress_payload(
         Form::Kind2 => StructureMeta::items(cur, n_symbols)?,
         Form::Kind3 => StructureMeta::bits(cur, n_symbols)?,
     };
+    let mut centres = [0i64; 3];
     let mut corr_meta = [(0, 0); 6];
-    for m in &mut corr_meta {
+    for (k, m) in corr_meta.iter_mut().enumerate() {
+        if form == Form::Kind3 && k < 3 {
+            centres[k] = get_centre(cur)?;
+        }
         *m = get_meta(cur)?;
     }
     let radius_meta = match form {
@@ -359,6 +411,9 @@ pub(crate) fn decompress_payload(
     let mut corrections: Corrections = Default::default();
     for (k, m) in corr_meta.iter().enumerate() {
         corrections[k / 3][k % 3] = get_stream(&mut r, counts[k / 3], *m)?;
+    }
+    for (stream, &centre) in corrections[0].iter_mut().zip(&centres) {
+        uncentre(stream, centre);
     }
     let symbols = join(&structure, &corrections, n_symbols, form == Form::Kind3)?;
 
@@ -694,6 +749,27 @@ mod tests {
         let back = join(&items, &streams.corrections, symbols.len(), true).unwrap();
         assert_eq!(back, symbols);
         assert!(join(&items, &streams.corrections, symbols.len(), false).is_err());
+    }
+
+    #[test]
+    fn centres_round_trip_and_hostile_centres_are_refused() {
+        let raw = [3i64, 2, 2, 1, 0, 4, 2];
+        let values: Vec<u64> = raw.iter().map(|&v| zigzag(v)).collect();
+        let (mut meta, mut bits) = (Vec::new(), BitWriter::new());
+        put_centred_stream(&mut meta, &mut bits, &values);
+        let bytes = bits.finish();
+        let mut cur = ByteCursor::new(&meta);
+        let centre = get_centre(&mut cur).unwrap();
+        assert_eq!(centre, 2, "the values cluster around 2");
+        let meta = get_meta(&mut cur).unwrap();
+        let mut back = get_stream(&mut BitReader::new(&bytes), raw.len(), meta).unwrap();
+        uncentre(&mut back, centre);
+        assert_eq!(back, values);
+        for hostile in [u64::MAX, zigzag(4), zigzag(-4)] {
+            let mut meta = Vec::new();
+            put_varint(&mut meta, hostile);
+            assert!(get_centre(&mut ByteCursor::new(&meta)).is_err());
+        }
     }
 
     #[test]
