@@ -56,14 +56,22 @@ fn chaincode(c: &mut Criterion) {
     let tree = chaincode_support::random_skeleton(7, 3000);
     let code = encode(&tree, &ChainOptions::default()).expect("encodable");
     let packed = code.compress();
+    let packed_v1 = code.compress_split_v1().expect("the encoder's move order");
     let mut group = c.benchmark_group("chaincode_random_r5");
     group.throughput(Throughput::Elements(tree.internode_count() as u64));
-    group.bench_function("decompress+decode", |b| {
-        b.iter(|| {
-            let code = ChainCode::decompress(black_box(&packed), &limits).expect("valid");
-            decode(&code).expect("valid")
-        })
-    });
+    // The current form (kind 3) and the version-1 split form (kind 2) in one
+    // run, so that a loaded machine affects both alike.
+    for (name, bytes) in [
+        ("decompress+decode", &packed),
+        ("v1 decompress+decode", &packed_v1),
+    ] {
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let code = ChainCode::decompress(black_box(bytes), &limits).expect("valid");
+                decode(&code).expect("valid")
+            })
+        });
+    }
     group.finish();
 }
 

@@ -63,6 +63,13 @@ fn main() {
             sz.radius_bits / 8,
             sz.radius_bits as f64 / 8.0 / n,
         );
+        if let Some(v1) = code.compress_split_v1() {
+            println!(
+                "  container version 1 split form (kind 2): {} B = {:.3} B/in",
+                v1.len(),
+                v1.len() as f64 / n
+            );
+        }
         println!(
             "  paper's single-string form (kind 1): {} B = {:.3} B/in",
             code.compress_single_string().len(),

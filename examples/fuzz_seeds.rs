@@ -63,6 +63,7 @@ fn main() {
         let code = chaincode::encode(tree, &ChainOptions::default()).expect("encodable");
         let plain = code.to_bytes();
         let split = code.compress_split().expect("the encoder's move order");
+        let split_v1 = code.compress_split_v1().expect("the encoder's move order");
         let single = code.compress_single_string();
         let lod = chaincode::reduce_lod(&code, 0.1).to_bytes();
         write(&root.join("chaincode"), &format!("{name}.bin"), &plain);
@@ -70,6 +71,11 @@ fn main() {
         write(
             &root.join("chaincode_stream"),
             &format!("{name}.k2"),
+            &split_v1,
+        );
+        write(
+            &root.join("chaincode_stream"),
+            &format!("{name}.k3"),
             &split,
         );
         write(

@@ -286,8 +286,8 @@ fn split_streams_are_used_and_other_move_orders_fall_back() {
     let s = botanical_tree(2, 600);
     let code = encode(&s, &ChainOptions::default()).unwrap();
     let packed = code.compress();
-    assert_eq!(packed[5], 2, "the encoder's codes use the split streams");
-    assert_eq!(code.compressed_sizes().kind, 2);
+    assert_eq!(packed[5], 3, "the encoder's codes use the split streams");
+    assert_eq!(code.compressed_sizes().kind, 3);
     assert_eq!(code.compressed_sizes().total_bytes, packed.len());
     assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), code);
 
@@ -307,6 +307,32 @@ fn split_streams_are_used_and_other_move_orders_fall_back() {
     assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), odd);
     for cut in 0..packed.len() {
         assert!(ChainCode::decompress(&packed[..cut], &limits).is_err());
+    }
+}
+
+#[test]
+fn version_1_split_streams_are_still_read() {
+    let limits = Limits::default();
+    let code = encode(&random_skeleton(11, 400), &ChainOptions::default()).unwrap();
+    let v1 = code.compress_split_v1().expect("the encoder's move order");
+    assert_eq!((v1[4], v1[5]), (1, 2), "version 1, kind 2");
+    assert_eq!(ChainCode::decompress(&v1, &limits).unwrap(), code);
+    // Kind 3 did not exist in version 1.
+    let mut v3 = code.compress_split().unwrap();
+    assert_eq!((v3[4], v3[5]), (chaincode::VERSION, 3));
+    v3[4] = 1;
+    assert!(ChainCode::decompress(&v3, &limits).is_err());
+}
+
+#[test]
+fn kind_3_is_shorter_than_kind_2_on_irregular_and_botanical_trees() {
+    // On main, `compress` wrote kind 2 (now `compress_split_v1`); the tip
+    // bits and parent-predicted radii of kind 3 must beat it.
+    for s in [random_skeleton(5, 2000), botanical_tree(3, 2000)] {
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        let v1 = code.compress_split_v1().unwrap().len();
+        let now = code.compress().len();
+        assert!(now < v1, "kind 3 {now} B, kind 2 {v1} B");
     }
 }
 

@@ -1,6 +1,6 @@
 //! Fuzzes the compressed chain code decoder (`ChainCode::decompress`): the
 //! single-string form (kind 1: BWT, MTF, interpolative code) and the split
-//! streams (kind 2), then the raw code decoder on whatever it accepts. Any
+//! streams (kind 2 of version 1, kind 3), then the raw code decoder on whatever it accepts. Any
 //! input must give Ok or a typed error, never a panic, a hang or an
 //! unbounded allocation; an accepted code must survive every byte form
 //! unchanged.

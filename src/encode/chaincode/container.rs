@@ -30,6 +30,7 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
+use super::split::Form;
 use super::{
     ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf, split,
 };
@@ -38,12 +39,16 @@ use glam::{DVec3, Vec3};
 
 /// The first bytes of every chain code stream.
 pub const MAGIC: &[u8; 4] = b"SLVC";
-/// The container version this build writes and reads.
-pub const VERSION: u8 = 1;
+/// The container version this build writes. Version 2 added kind 3; this
+/// build still reads version 1 (kinds 0–2, unchanged).
+pub const VERSION: u8 = 2;
+/// The first version, whose kinds 0–2 this build writes and reads unchanged.
+const VERSION_1: u8 = 1;
 
 const KIND_PLAIN: u8 = 0;
 const KIND_INTERPOLATIVE: u8 = 1;
 const KIND_SPLIT: u8 = 2;
+const KIND_SPLIT_3: u8 = 3;
 const FLAG_CRS: u8 = 1;
 const FLAG_RESOLUTION: u8 = 2;
 const MAX_SYMBOL_GAP: u64 = (ALPHABET - 1) as u64;
@@ -104,7 +109,7 @@ impl ChainCode {
     /// binary interpolative coding of the symbols and of the per-branch
     /// radius gaps.
     ///
-    /// Writes the split-stream form (kind 2, `split.rs`) when the code is in
+    /// Writes the split-stream form (kind 3, `split.rs`) when the code is in
     /// the encoder's move order and that is shorter, else the paper's single
     /// string form ([`ChainCode::compress_single_string`], kind 1).
     pub fn compress(&self) -> Vec<u8> {
@@ -115,13 +120,26 @@ impl ChainCode {
         }
     }
 
-    /// Kind 2, the split streams (`split.rs`), or `None` if some internode
+    /// Kind 3, the split streams (`split.rs`), or `None` if some internode
     /// writes its moves in another order than the encoder's.
     /// [`ChainCode::decompress`] reads it; [`ChainCode::compress`] uses it
     /// when it is shorter than kind 1.
     pub fn compress_split(&self) -> Option<Vec<u8>> {
-        split::compress_payload(self).map(|payload| {
+        split::compress_payload(self, Form::Kind3).map(|payload| {
+            let mut out = self.header_bytes(KIND_SPLIT_3);
+            out.extend(payload);
+            out
+        })
+    }
+
+    /// Kind 2 as container version 1 wrote it (BWT and MTF structure,
+    /// tip-first radii), or `None` as for [`ChainCode::compress_split`].
+    /// [`ChainCode::decompress`] still reads it; nothing writes it by
+    /// default. Kept to test and fuzz the reader of stored version-1 codes.
+    pub fn compress_split_v1(&self) -> Option<Vec<u8>> {
+        split::compress_payload(self, Form::Kind2).map(|payload| {
             let mut out = self.header_bytes(KIND_SPLIT);
+            out[MAGIC.len()] = VERSION_1;
             out.extend(payload);
             out
         })
@@ -166,8 +184,8 @@ impl ChainCode {
     pub fn compressed_sizes(&self) -> CompressedSizes {
         let total = self.compress();
         let header_bytes = self.header_bytes(total[5]).len();
-        let [structure_bits, move_bits, radius_bits] = if total[5] == KIND_SPLIT {
-            split::stream_bits(self).expect("the split form was written")
+        let [structure_bits, move_bits, radius_bits] = if total[5] == KIND_SPLIT_3 {
+            split::stream_bits(self, Form::Kind3).expect("the split form was written")
         } else {
             let (last, _) = bwt::bwt_forward(&self.symbols, ALPHABET);
             let indices = mtf::mtf_forward(&last, ALPHABET);
@@ -194,11 +212,17 @@ impl ChainCode {
     pub fn decompress(bytes: &[u8], limits: &Limits) -> Result<ChainCode, ChainError> {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
-        if kind == KIND_SPLIT {
+        let form = match kind {
+            KIND_SPLIT => Some(Form::Kind2),
+            KIND_SPLIT_3 if bytes[MAGIC.len()] >= VERSION => Some(Form::Kind3),
+            KIND_SPLIT_3 => return Err(ChainError::Malformed("kind 3 in a version 1 stream")),
+            _ => None,
+        };
+        if let Some(form) = form {
             // The payload reader has checked the symbols' grammar and the
             // radius count (`lod::scan`), and `read_header` the header: the
             // checks of `ChainCode::new`, not repeated here.
-            let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes)?;
+            let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes, form)?;
             return Ok(ChainCode {
                 header,
                 symbols,
@@ -294,14 +318,14 @@ pub struct CompressedSizes {
     pub total_bytes: usize,
     /// The common header (georeference, voxel size, counts).
     pub header_bytes: usize,
-    /// Container kind: 1 single symbol string, 2 split streams.
+    /// Container kind: 1 single symbol string, 3 split streams.
     pub kind: u8,
     /// Varints and flags between the header and the bit stream.
     pub metadata_bytes: usize,
-    /// Kind 2: the interpolative code of the structure (terminators and
-    /// fork markers); 0 for kind 1.
+    /// Kind 3: the interpolative codes of the structure (tips, forks and
+    /// lateral counts); 0 for kind 1.
     pub structure_bits: u64,
-    /// Kind 2: the six correction streams; kind 1: the whole symbol string.
+    /// Kind 3: the six correction streams; kind 1: the whole symbol string.
     pub move_bits: u64,
     /// The radius codes (kind 1: with the bit stream's padding).
     pub radius_bits: u64,
@@ -321,7 +345,7 @@ fn read_header(
         return Err(ChainError::BadMagic);
     }
     let version = cur.u8()?;
-    if version != VERSION {
+    if !(VERSION_1..=VERSION).contains(&version) {
         return Err(ChainError::UnsupportedVersion(version));
     }
     let kind = cur.u8()?;

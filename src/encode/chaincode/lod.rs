@@ -27,6 +27,8 @@ struct ForkGroup {
     ends_internode: bool,
     /// Branch the fork node lies on.
     branch: usize,
+    /// The fork node, in decoding order.
+    node: usize,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -53,6 +55,15 @@ impl Scan {
         self.branches
             .iter()
             .map(|b| b.nodes.1 - b.nodes.0)
+            .collect()
+    }
+
+    /// The fork node (in decoding order) each branch grows from, `None` for
+    /// the trunk; always a node of an earlier branch.
+    pub(crate) fn branch_parents(&self) -> Vec<Option<usize>> {
+        self.branches
+            .iter()
+            .map(|b| b.group.map(|g| self.groups[g].node))
             .collect()
     }
 }
@@ -91,6 +102,7 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
                         len: 0,
                         ends_internode: false,
                         branch: branches.len(),
+                        node: nodes - 1,
                     });
                     groups.len() - 1
                 });
@@ -115,6 +127,7 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
                 len: 1,
                 ends_internode: true,
                 branch: branches.len(),
+                node: nodes - 1,
             });
             open_group = Some(groups.len() - 1);
             queue.push_back(groups.len() - 1);

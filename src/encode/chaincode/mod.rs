@@ -32,9 +32,10 @@
 //! - **Compression** ([`ChainCode::compress`]): the paper's BWT, MTF,
 //!   cumulative sums and binary interpolative coding, applied either to the
 //!   whole symbol string (kind 1, the paper's form) or, shorter on irregular
-//!   skeletons, to split streams: terminators, per-axis corrections of
-//!   branch-first and continuation internodes, tip radii and radius
-//!   increases (kind 2, `split.rs`).
+//!   skeletons, to split streams: tips, forks and lateral counts, per-axis
+//!   corrections of branch-first and continuation internodes, and radii
+//!   predicted from the fork node or tip-first (kind 3, `split.rs`; kind 2
+//!   of container version 1 is still read).
 //! - **Error bound.** Every decoded node lies within `√3·d/2` of its original
 //!   position, independently of its depth (no drift: the voxel coordinates are
 //!   exact integers). Each radius is within `radius_step_m / 2`.

@@ -99,6 +99,57 @@ pub(crate) fn radii_from_gaps(gaps: &[i64], chains: &[usize]) -> Option<Vec<u32>
     (start == gaps.len()).then_some(out)
 }
 
+/// Parent-predicted radius gaps (container kind 3): each lateral branch's
+/// base radius as a decrease from its fork node's radius (the pipe model:
+/// a lateral is rarely thicker than its parent), then the decreases from
+/// base towards the tip along every branch. Returns `(bases, along)`: one
+/// base per lateral branch (the trunk's base is the root radius, stored on
+/// its own), one decrease per node after a branch's first.
+pub(crate) fn parent_gaps(
+    radii: &[u32],
+    chains: &[usize],
+    parents: &[Option<usize>],
+) -> (Vec<i64>, Vec<i64>) {
+    let mut bases = Vec::with_capacity(chains.len());
+    let mut along = Vec::with_capacity(radii.len());
+    let mut start = 0;
+    for (&len, parent) in chains.iter().zip(parents) {
+        let chain = &radii[start..start + len];
+        if let Some(p) = *parent {
+            bases.push(i64::from(radii[p]) - i64::from(chain[0]));
+        }
+        along.extend(chain.windows(2).map(|w| i64::from(w[0]) - i64::from(w[1])));
+        start += len;
+    }
+    (bases, along)
+}
+
+/// Inverts [`parent_gaps`]; `None` if a radius leaves `0..=2^30`, a parent
+/// is not an earlier node or a list has the wrong length.
+pub(crate) fn radii_from_parent_gaps(
+    root_q: u64,
+    (bases, along): (&[i64], &[i64]),
+    chains: &[usize],
+    parents: &[Option<usize>],
+) -> Option<Vec<u32>> {
+    let mut out: Vec<u32> = Vec::with_capacity(along.len() + bases.len() + 1);
+    let (mut bases, mut along) = (bases.iter(), along.iter());
+    let checked = |r: i64| (0..=MAX_Q as i64).contains(&r).then_some(r as u32);
+    for (&len, parent) in chains.iter().zip(parents) {
+        let first = match *parent {
+            None if out.is_empty() => checked(i64::try_from(root_q).ok()?)?,
+            None => return None,
+            Some(p) => checked(i64::from(*out.get(p)?) - bases.next()?)?,
+        };
+        out.push(first);
+        for _ in 1..len {
+            let prev = i64::from(*out.last()?);
+            out.push(checked(prev - along.next()?)?);
+        }
+    }
+    (bases.next().is_none() && along.next().is_none()).then_some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,6 +172,19 @@ mod tests {
             radii_from_gaps(&g, &[3, 2]).unwrap(),
             vec![30, 28, 27, 9, 8]
         );
+    }
+
+    #[test]
+    fn parent_gaps_of_a_lateral_start_at_its_fork() {
+        // Trunk 30, 28, 27 (the root first); a lateral 9, 8 forking at node 1.
+        let (radii, chains, parents) = ([30, 28, 27, 9, 8], [3, 2], [None, Some(1)]);
+        let (bases, along) = parent_gaps(&radii, &chains, &parents);
+        assert_eq!(bases, vec![19]);
+        assert_eq!(along, vec![2, 1, 1]);
+        let back = radii_from_parent_gaps(30, (&bases, &along), &chains, &parents);
+        assert_eq!(back.unwrap(), radii);
+        // A parent that is not an earlier node is rejected.
+        assert!(radii_from_parent_gaps(30, (&bases, &along), &chains, &[None, Some(3)]).is_none());
     }
 
     proptest! {

@@ -1,4 +1,4 @@
-//! The split-stream interpolative form (container kind 2): the same
+//! The split-stream interpolative forms (container kinds 2 and 3): the same
 //! interpolative machinery as chain-code paper §3.3 (BWT, MTF, cumulative
 //! sums, binary interpolative coding), applied to separate streams instead
 //! of one symbol string.
@@ -11,16 +11,22 @@
 //! coded as a correction), and the terminators in a stream of their own,
 //! shrinks those codes by about a fifth; splitting the radius gaps into tip
 //! radii and along-branch increases (mostly zero) saves another fifth of the
-//! radius bits. Measured figures are in `docs/chaincode.md` §9.
+//! radius bits. Kind 3 (container version 2) codes the terminators as
+//! tip bits, fork bits and lateral counts (their order-0 entropy, which BWT
+//! and MTF do not reach on reconstructed trees) and predicts each lateral's
+//! base radius from its fork node when that is shorter. Measured figures are
+//! in `docs/chaincode.md` §9.
 //!
 //! The form is lossless for every code whose internodes write their moves
 //! clustered by axis (`push_moves` in the encoder) or as the cancelling pair
 //! `0 3` before a fork symbol, which is every code [`super::encode`] and
 //! [`super::reduce_lod`] produce. Any other code is written in kind 1.
+//! Kind 3 relies on the canonical `0 3` pair: only where a fork marker could
+//! stand, so the decoder restores it without a structure item.
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::container::{best_radius_mapping, cumulative, differences, unzigzag, zigzag};
-use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
+use super::radii::{GapMapping, branch_gaps, parent_gaps, radii_from_gaps, radii_from_parent_gaps};
 use super::{ChainCode, ChainError, END, FORK, MOVE_NEG_X, MOVE_POS_X, TIP, bwt, interpolative};
 use super::{lod, mtf};
 
@@ -73,7 +79,9 @@ fn split(symbols: &[u8]) -> Option<Streams> {
         expected.clear();
         push_moves(&mut expected, corr);
         let item = match s {
-            FORK if moves == [MOVE_POS_X, MOVE_NEG_X] && corr == [0; 3] => S_FORK_PAIR,
+            FORK if moves == [MOVE_POS_X, MOVE_NEG_X] && corr == [0; 3] && markers_allowed => {
+                S_FORK_PAIR
+            }
             _ if moves != expected.as_slice() => return None,
             FORK => S_FORK,
             TIP => S_TIP,
@@ -109,6 +117,44 @@ fn put_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[u64]) {
     put_varint(meta, max_gap);
     put_varint(meta, sums.last().copied().unwrap_or(0));
     interpolative::encode_into(bits, &sums, max_gap);
+}
+
+/// Largest centre of a branch-first correction stream (kind 3).
+const MAX_CENTRE: i64 = 3;
+
+/// Kind 3, a branch's first internode (coded in full): its corrections are
+/// not centred on 0 (laterals mostly grow upwards), so the stream stores a
+/// centre `c` in `-3..=3` (zigzagged, one byte) and codes `zigzag(v − c)`,
+/// with the `c` that codes shortest.
+fn put_centred_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, zigzagged: &[u64]) {
+    let shifted =
+        |c: i64| -> Vec<u64> { zigzagged.iter().map(|&z| zigzag(unzigzag(z) - c)).collect() };
+    let cost = |values: &[u64]| {
+        let (mut m, mut b) = (Vec::new(), BitWriter::new());
+        put_stream(&mut m, &mut b, values);
+        m.len() as u64 * 8 + b.bit_len()
+    };
+    let centre = (-MAX_CENTRE..=MAX_CENTRE)
+        .min_by_key(|&c| (cost(&shifted(c)), c.unsigned_abs()))
+        .unwrap_or(0);
+    put_varint(meta, zigzag(centre));
+    put_stream(meta, bits, &shifted(centre));
+}
+
+fn get_centre(cur: &mut ByteCursor<'_>) -> Result<i64, ChainError> {
+    let c = unzigzag(cur.varint()?);
+    if !(-MAX_CENTRE..=MAX_CENTRE).contains(&c) {
+        return Err(ChainError::Malformed("correction centre out of range"));
+    }
+    Ok(c)
+}
+
+/// Inverts the centring of [`put_centred_stream`]; values out of range are
+/// left for `join` to refuse.
+fn uncentre(stream: &mut [u64], centre: i64) {
+    for z in stream {
+        *z = zigzag(unzigzag(*z).saturating_add(centre));
+    }
 }
 
 /// Metadata of one stream: `(max_gap, last sum)`.
@@ -159,87 +205,203 @@ fn split_radii(gaps: &[i64], chains: &[usize]) -> (Vec<i64>, Vec<i64>) {
     (tips, inner)
 }
 
-/// The kind-2 payload (everything after the header), or `None` if the code
-/// is not in the encoder's move order.
-pub(crate) fn compress_payload(code: &ChainCode) -> Option<Vec<u8>> {
-    build(code).map(|(payload, _)| payload)
+/// Which split-stream layout: kind 2 (container version 1) or kind 3.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Form {
+    /// Kind 2: structure items through BWT and MTF; tip-first radii.
+    Kind2,
+    /// Kind 3: structure as tip bits, fork bits and lateral counts; radii
+    /// tip-first or parent-predicted, whichever is shorter.
+    Kind3,
 }
 
-/// Bits of the structure, correction and radius codes of the kind-2 form.
-pub(crate) fn stream_bits(code: &ChainCode) -> Option<[u64; 3]> {
-    build(code).map(|(_, bits)| bits)
+/// The payload (everything after the header), or `None` if the code is not
+/// in the encoder's move order.
+pub(crate) fn compress_payload(code: &ChainCode, form: Form) -> Option<Vec<u8>> {
+    build(code, form).map(|(payload, _)| payload)
 }
 
-fn build(code: &ChainCode) -> Option<(Vec<u8>, [u64; 3])> {
+/// Bits of the structure, correction and radius codes of a split form.
+pub(crate) fn stream_bits(code: &ChainCode, form: Form) -> Option<[u64; 3]> {
+    build(code, form).map(|(_, bits)| bits)
+}
+
+fn build(code: &ChainCode, form: Form) -> Option<(Vec<u8>, [u64; 3])> {
     let streams = split(code.symbols())?;
     let mut meta = Vec::new();
     let mut bits = BitWriter::new();
-
-    let (last, primary) = bwt::bwt_forward(&streams.structure, STRUCT_ALPHABET);
-    let indices: Vec<u64> = mtf::mtf_forward(&last, STRUCT_ALPHABET)
-        .into_iter()
-        .map(u64::from)
-        .collect();
-    put_varint(&mut meta, streams.structure.len() as u64);
-    put_varint(&mut meta, primary as u64);
-    put_stream(&mut meta, &mut bits, &indices);
+    match form {
+        Form::Kind2 => put_structure_items(&mut meta, &mut bits, &streams.structure),
+        Form::Kind3 => put_structure_bits(&mut meta, &mut bits, &streams.structure),
+    }
     let structure_bits = bits.bit_len();
-    for stream in streams.corrections.iter().flatten() {
-        put_stream(&mut meta, &mut bits, stream);
+    for (k, stream) in streams.corrections.iter().flatten().enumerate() {
+        if form == Form::Kind3 && k < 3 {
+            put_centred_stream(&mut meta, &mut bits, stream);
+        } else {
+            put_stream(&mut meta, &mut bits, stream);
+        }
     }
     let correction_bits = bits.bit_len() - structure_bits;
 
     let scan = lod::scan(code.symbols(), code.radii_q().len()).ok()?;
-    let chains = scan.branch_lengths();
-    let gaps = branch_gaps(code.radii_q(), &chains);
-    let (tips, inner) = split_radii(&gaps, &chains);
-    for part in [tips, inner] {
-        let (mapping, _) = best_radius_mapping(&part);
-        put_mapping(&mut meta, mapping);
-        let mapped: Vec<u64> = part.iter().map(|&g| mapping.apply(g)).collect();
-        put_stream(&mut meta, &mut bits, &mapped);
+    let radii = RadiusStreams::of(code.radii_q(), &scan);
+    match form {
+        Form::Kind2 => radii.put_tip_first(&mut meta, &mut bits),
+        Form::Kind3 => radii.put_best(&mut meta, &mut bits),
     }
     let radius_bits = bits.bit_len() - structure_bits - correction_bits;
     meta.extend(bits.finish());
     Some((meta, [structure_bits, correction_bits, radius_bits]))
 }
 
-/// Reads a kind-2 payload into the symbols and radii of `n_symbols` and
-/// `n_nodes` (already checked against the limits).
+/// Kind 2 structure: the items through BWT (virtual end marker) and MTF.
+fn put_structure_items(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]) {
+    let (last, primary) = bwt::bwt_forward(structure, STRUCT_ALPHABET);
+    let indices: Vec<u64> = mtf::mtf_forward(&last, STRUCT_ALPHABET)
+        .into_iter()
+        .map(u64::from)
+        .collect();
+    put_varint(meta, structure.len() as u64);
+    put_varint(meta, primary as u64);
+    put_stream(meta, bits, &indices);
+}
+
+/// Kind 3 structure: the number of leading fork markers (laterals of the
+/// root beyond the first), then three streams: one bit per internode (1 at
+/// a tip), one bit per other internode (1 at a fork), and per fork the
+/// number of further laterals (its zero-length internodes). Coding which
+/// internodes are tips as a set of positions costs close to its order-0
+/// entropy, which BWT and MTF on the mixed items do not reach.
+fn put_structure_bits(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]) {
+    let leading = structure.iter().take_while(|&&i| i == S_MARKER).count();
+    let mut tips = Vec::new();
+    let mut forks = Vec::new();
+    let mut laterals: Vec<u64> = Vec::new();
+    for &item in &structure[leading..] {
+        match item {
+            S_MARKER => *laterals.last_mut().expect("a marker follows a fork") += 1,
+            S_TIP => tips.push(1),
+            _ => {
+                tips.push(0);
+                let fork = item == S_FORK || item == S_FORK_PAIR;
+                forks.push(u64::from(fork));
+                if fork {
+                    laterals.push(0);
+                }
+            }
+        }
+    }
+    put_varint(meta, leading as u64);
+    for stream in [&tips, &forks, &laterals] {
+        put_stream(meta, bits, stream);
+    }
+}
+
+/// The radius streams of a code, in both layouts.
+struct RadiusStreams {
+    /// Tip-first: per branch its tip radius, then increases towards the base.
+    tips: Vec<i64>,
+    inner: Vec<i64>,
+    /// Parent-predicted: root radius, lateral bases below their fork node's
+    /// radius, decreases along each branch.
+    root: u64,
+    bases: Vec<i64>,
+    along: Vec<i64>,
+}
+
+impl RadiusStreams {
+    fn of(radii_q: &[u32], scan: &lod::Scan) -> Self {
+        let chains = scan.branch_lengths();
+        let gaps = branch_gaps(radii_q, &chains);
+        let (tips, inner) = split_radii(&gaps, &chains);
+        let (bases, along) = parent_gaps(radii_q, &chains, &scan.branch_parents());
+        Self {
+            tips,
+            inner,
+            root: radii_q.first().map_or(0, |&q| u64::from(q)),
+            bases,
+            along,
+        }
+    }
+
+    fn put_tip_first(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
+        put_signed_stream(meta, bits, &self.tips);
+        put_signed_stream(meta, bits, &self.inner);
+    }
+
+    fn put_parent_predicted(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
+        put_varint(meta, self.root);
+        put_signed_stream(meta, bits, &self.bases);
+        put_signed_stream(meta, bits, &self.along);
+    }
+
+    /// Kind 3: a layout byte (0 tip-first, 1 parent-predicted), then the
+    /// shorter layout.
+    fn put_best(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
+        let cost = |put: fn(&Self, &mut Vec<u8>, &mut BitWriter)| {
+            let (mut m, mut b) = (Vec::new(), BitWriter::new());
+            put(self, &mut m, &mut b);
+            m.len() as u64 * 8 + b.bit_len()
+        };
+        let tip_first = cost(Self::put_tip_first);
+        if cost(Self::put_parent_predicted) < tip_first {
+            meta.push(RADII_PARENT_PREDICTED);
+            self.put_parent_predicted(meta, bits);
+        } else {
+            meta.push(RADII_TIP_FIRST);
+            self.put_tip_first(meta, bits);
+        }
+    }
+}
+
+const RADII_TIP_FIRST: u8 = 0;
+const RADII_PARENT_PREDICTED: u8 = 1;
+
+/// A signed stream made non-negative by the shorter mapping (the mapping
+/// goes into `meta` before the stream's own metadata).
+fn put_signed_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
+    let (mapping, _) = best_radius_mapping(values);
+    put_mapping(meta, mapping);
+    let mapped: Vec<u64> = values.iter().map(|&g| mapping.apply(g)).collect();
+    put_stream(meta, bits, &mapped);
+}
+
+/// Reads a split-stream payload into the symbols and radii of `n_symbols`
+/// and `n_nodes` (already checked against the limits).
 pub(crate) fn decompress_payload(
     cur: &mut ByteCursor<'_>,
     n_symbols: usize,
     n_nodes: usize,
+    form: Form,
 ) -> Result<(Vec<u8>, Vec<u32>), ChainError> {
-    let n_struct = cur.varint()?;
-    if n_struct > n_symbols as u64 {
-        return Err(ChainError::Malformed("structure longer than the symbols"));
+    if n_nodes == 0 {
+        return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
     }
-    let n_struct = n_struct as usize;
-    let primary = usize::try_from(cur.varint()?)
-        .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
-    let struct_meta = get_meta(cur)?;
+    let structure_meta = match form {
+        Form::Kind2 => StructureMeta::items(cur, n_symbols)?,
+        Form::Kind3 => StructureMeta::bits(cur, n_symbols)?,
+    };
+    let mut centres = [0i64; 3];
     let mut corr_meta = [(0, 0); 6];
-    for m in &mut corr_meta {
+    for (k, m) in corr_meta.iter_mut().enumerate() {
+        if form == Form::Kind3 && k < 3 {
+            centres[k] = get_centre(cur)?;
+        }
         *m = get_meta(cur)?;
     }
-    let tip_mapping = get_mapping(cur)?;
-    let tip_meta = get_meta(cur)?;
-    let inner_mapping = get_mapping(cur)?;
-    let inner_meta = get_meta(cur)?;
+    let radius_meta = match form {
+        Form::Kind2 => RadiusMeta::tip_first(cur)?,
+        Form::Kind3 => match cur.u8()? {
+            RADII_TIP_FIRST => RadiusMeta::tip_first(cur)?,
+            RADII_PARENT_PREDICTED => RadiusMeta::parent_predicted(cur)?,
+            _ => return Err(ChainError::Malformed("unknown radius layout")),
+        },
+    };
     let bit_bytes = cur.rest();
     let mut r = BitReader::new(bit_bytes);
 
-    let indices = get_stream(&mut r, n_struct, struct_meta)?;
-    let indices: Vec<u8> = indices
-        .into_iter()
-        .map(|i| u8::try_from(i).unwrap_or(u8::MAX))
-        .collect();
-    let last = mtf::mtf_inverse(&indices, STRUCT_ALPHABET)
-        .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
-    let structure = bwt::bwt_inverse(&last, primary, STRUCT_ALPHABET).ok_or(
-        ChainError::Malformed("BWT key does not invert the transform"),
-    )?;
+    let structure = structure_meta.read(&mut r, n_nodes - 1)?;
     let counts = internode_counts(&structure);
     if counts[0] + counts[1] + 1 != n_nodes {
         return Err(ChainError::Malformed(
@@ -250,23 +412,198 @@ pub(crate) fn decompress_payload(
     for (k, m) in corr_meta.iter().enumerate() {
         corrections[k / 3][k % 3] = get_stream(&mut r, counts[k / 3], *m)?;
     }
-    let symbols = join(&structure, &corrections, n_symbols)?;
+    for (stream, &centre) in corrections[0].iter_mut().zip(&centres) {
+        uncentre(stream, centre);
+    }
+    let symbols = join(&structure, &corrections, n_symbols, form == Form::Kind3)?;
 
     let scan = lod::scan(&symbols, n_nodes)?;
-    let chains = scan.branch_lengths();
-    let tips = get_stream(&mut r, chains.len(), tip_meta)?;
-    let inner = get_stream(&mut r, n_nodes - chains.len(), inner_meta)?;
+    let radii_q = radius_meta.read(&mut r, &scan, n_nodes)?;
     if r.overrun() {
         return Err(ChainError::Truncated);
     }
     if r.bytes_consumed() != bit_bytes.len() {
         return Err(ChainError::Malformed("bytes after the compressed stream"));
     }
-    let gaps = join_radii(&tips, tip_mapping, &inner, inner_mapping, &chains)
-        .ok_or(ChainError::Malformed("radius gap out of range"))?;
-    let radii_q =
-        radii_from_gaps(&gaps, &chains).ok_or(ChainError::Malformed("radius out of range"))?;
     Ok((symbols, radii_q))
+}
+
+type Meta = (u64, u64);
+
+/// The structure's metadata, read before the bit stream.
+enum StructureMeta {
+    Items {
+        len: usize,
+        primary: usize,
+        meta: Meta,
+    },
+    Bits {
+        leading: usize,
+        tips: Meta,
+        forks: Meta,
+        laterals: Meta,
+    },
+}
+
+impl StructureMeta {
+    fn items(cur: &mut ByteCursor<'_>, n_symbols: usize) -> Result<Self, ChainError> {
+        let len = cur.varint()?;
+        if len > n_symbols as u64 {
+            return Err(ChainError::Malformed("structure longer than the symbols"));
+        }
+        let primary = usize::try_from(cur.varint()?)
+            .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
+        Ok(Self::Items {
+            len: len as usize,
+            primary,
+            meta: get_meta(cur)?,
+        })
+    }
+
+    fn bits(cur: &mut ByteCursor<'_>, n_symbols: usize) -> Result<Self, ChainError> {
+        let leading = cur.varint()?;
+        if leading > n_symbols as u64 {
+            return Err(ChainError::Malformed("structure longer than the symbols"));
+        }
+        Ok(Self::Bits {
+            leading: leading as usize,
+            tips: get_meta(cur)?,
+            forks: get_meta(cur)?,
+            laterals: get_meta(cur)?,
+        })
+    }
+
+    /// The structure items of a code with `n_internodes` internodes.
+    fn read(&self, r: &mut BitReader<'_>, n_internodes: usize) -> Result<Vec<u8>, ChainError> {
+        match *self {
+            Self::Items { len, primary, meta } => {
+                let indices: Vec<u8> = get_stream(r, len, meta)?
+                    .into_iter()
+                    .map(|i| u8::try_from(i).unwrap_or(u8::MAX))
+                    .collect();
+                let last = mtf::mtf_inverse(&indices, STRUCT_ALPHABET)
+                    .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
+                bwt::bwt_inverse(&last, primary, STRUCT_ALPHABET).ok_or(ChainError::Malformed(
+                    "BWT key does not invert the transform",
+                ))
+            }
+            Self::Bits {
+                leading,
+                tips,
+                forks,
+                laterals,
+            } => {
+                let tips = get_flags(r, n_internodes, tips)?;
+                let n_other = tips.iter().filter(|&&t| !t).count();
+                let forks = get_flags(r, n_other, forks)?;
+                let n_forks = forks.iter().filter(|&&f| f).count();
+                if laterals.1 > (n_internodes + leading) as u64 {
+                    return Err(ChainError::Malformed("more laterals than internodes"));
+                }
+                let laterals = get_stream(r, n_forks, laterals)?;
+                Ok(structure_items(leading, &tips, &forks, &laterals))
+            }
+        }
+    }
+}
+
+/// A stream of 0/1 values.
+fn get_flags(r: &mut BitReader<'_>, n: usize, meta: Meta) -> Result<Vec<bool>, ChainError> {
+    if meta.0 > 1 {
+        return Err(ChainError::Malformed("flag stream with values above 1"));
+    }
+    Ok(get_stream(r, n, meta)?
+        .into_iter()
+        .map(|v| v == 1)
+        .collect())
+}
+
+/// Rebuilds the kind-2 structure items from the kind-3 streams (every
+/// internode ending at a fork as `S_FORK`; `join` restores the `0 3` pair).
+fn structure_items(leading: usize, tips: &[bool], forks: &[bool], laterals: &[u64]) -> Vec<u8> {
+    let mut items = vec![S_MARKER; leading];
+    let (mut forks, mut laterals) = (forks.iter(), laterals.iter());
+    for &tip in tips {
+        if tip {
+            items.push(S_TIP);
+        } else if forks.next() == Some(&true) {
+            items.push(S_FORK);
+            let extra = laterals.next().copied().unwrap_or(0) as usize;
+            items.extend(std::iter::repeat_n(S_MARKER, extra));
+        } else {
+            items.push(S_END);
+        }
+    }
+    items
+}
+
+/// The radius metadata, read before the bit stream.
+enum RadiusMeta {
+    TipFirst {
+        tips: (GapMapping, Meta),
+        inner: (GapMapping, Meta),
+    },
+    ParentPredicted {
+        root: u64,
+        bases: (GapMapping, Meta),
+        along: (GapMapping, Meta),
+    },
+}
+
+impl RadiusMeta {
+    fn tip_first(cur: &mut ByteCursor<'_>) -> Result<Self, ChainError> {
+        Ok(Self::TipFirst {
+            tips: (get_mapping(cur)?, get_meta(cur)?),
+            inner: (get_mapping(cur)?, get_meta(cur)?),
+        })
+    }
+
+    fn parent_predicted(cur: &mut ByteCursor<'_>) -> Result<Self, ChainError> {
+        Ok(Self::ParentPredicted {
+            root: cur.varint()?,
+            bases: (get_mapping(cur)?, get_meta(cur)?),
+            along: (get_mapping(cur)?, get_meta(cur)?),
+        })
+    }
+
+    fn read(
+        &self,
+        r: &mut BitReader<'_>,
+        scan: &lod::Scan,
+        n_nodes: usize,
+    ) -> Result<Vec<u32>, ChainError> {
+        let chains = scan.branch_lengths();
+        let out_of_range = ChainError::Malformed("radius out of range");
+        match *self {
+            Self::TipFirst { tips, inner } => {
+                let tips = get_signed_stream(r, chains.len(), tips)?;
+                let inner = get_signed_stream(r, n_nodes - chains.len(), inner)?;
+                let gaps = join_radii(&tips, &inner, &chains)
+                    .ok_or(ChainError::Malformed("radius gap out of range"))?;
+                radii_from_gaps(&gaps, &chains).ok_or(out_of_range)
+            }
+            Self::ParentPredicted { root, bases, along } => {
+                let bases = get_signed_stream(r, chains.len() - 1, bases)?;
+                let along = get_signed_stream(r, n_nodes - chains.len(), along)?;
+                let parents = scan.branch_parents();
+                radii_from_parent_gaps(root, (&bases, &along), &chains, &parents)
+                    .ok_or(out_of_range)
+            }
+        }
+    }
+}
+
+/// A stream written by [`put_signed_stream`].
+fn get_signed_stream(
+    r: &mut BitReader<'_>,
+    n: usize,
+    (mapping, meta): (GapMapping, Meta),
+) -> Result<Vec<i64>, ChainError> {
+    get_stream(r, n, meta)?
+        .into_iter()
+        .map(|u| mapping.invert(u))
+        .collect::<Option<Vec<i64>>>()
+        .ok_or(ChainError::Malformed("radius gap out of range"))
 }
 
 /// Internodes that start a branch and continuations, from the structure.
@@ -284,15 +621,21 @@ fn internode_counts(structure: &[u8]) -> [usize; 2] {
 }
 
 /// Rebuilds the DBF6 symbols, never more than `n_symbols` of them.
+///
+/// With `restore_pairs` (kind 3), an internode ending at a fork with a zero
+/// correction where a fork marker could stand is written `0 3 6`, as the
+/// encoder does.
 fn join(
     structure: &[u8],
     corrections: &Corrections,
     n_symbols: usize,
+    restore_pairs: bool,
 ) -> Result<Vec<u8>, ChainError> {
     let too_long = || ChainError::Malformed("streams describe more symbols than declared");
     let mut symbols = Vec::with_capacity(n_symbols);
     let mut next = [0usize; 2];
     let mut branch_start = true;
+    let mut markers_allowed = true;
     for &item in structure {
         if item == S_MARKER {
             if symbols.len() >= n_symbols {
@@ -314,6 +657,10 @@ fn join(
             *c = unzigzag(z);
             moves += c.unsigned_abs();
         }
+        let item = match item {
+            S_FORK if restore_pairs && markers_allowed && corr == [0; 3] => S_FORK_PAIR,
+            _ => item,
+        };
         let ending = if item == S_FORK_PAIR { 3 } else { 1 };
         if symbols.len() as u64 + moves + ending > n_symbols as u64 {
             return Err(too_long());
@@ -327,6 +674,7 @@ fn join(
             _ => return Err(ChainError::Malformed("bad structure item")),
         }
         branch_start = item == S_TIP;
+        markers_allowed = item == S_FORK || item == S_FORK_PAIR;
     }
     if symbols.len() != n_symbols {
         return Err(ChainError::Malformed(
@@ -337,19 +685,13 @@ fn join(
 }
 
 /// Interleaves tip radii and inner increases back into per-branch gaps.
-fn join_radii(
-    tips: &[u64],
-    tip_mapping: GapMapping,
-    inner: &[u64],
-    inner_mapping: GapMapping,
-    chains: &[usize],
-) -> Option<Vec<i64>> {
+fn join_radii(tips: &[i64], inner: &[i64], chains: &[usize]) -> Option<Vec<i64>> {
     let mut gaps = Vec::with_capacity(tips.len() + inner.len());
     let mut inner = inner.iter();
     for (&tip, &len) in tips.iter().zip(chains) {
-        gaps.push(tip_mapping.invert(tip)?);
+        gaps.push(tip);
         for _ in 1..len {
-            gaps.push(inner_mapping.invert(*inner.next()?)?);
+            gaps.push(*inner.next()?);
         }
     }
     Some(gaps)
@@ -378,9 +720,56 @@ mod tests {
             ]
         );
         assert_eq!(internode_counts(&streams.structure), [4, 3]);
-        let back = join(&streams.structure, &streams.corrections, symbols.len()).unwrap();
+        let back = join(
+            &streams.structure,
+            &streams.corrections,
+            symbols.len(),
+            false,
+        )
+        .unwrap();
         assert_eq!(back, symbols);
-        assert!(join(&streams.structure, &streams.corrections, symbols.len() - 1).is_err());
+        assert!(
+            join(
+                &streams.structure,
+                &streams.corrections,
+                symbols.len() - 1,
+                false
+            )
+            .is_err()
+        );
+
+        // Kind 3: tip bits, fork bits and lateral counts; the `0 3` pair is
+        // restored by `join`.
+        let (mut meta, mut bits) = (Vec::new(), BitWriter::new());
+        put_structure_bits(&mut meta, &mut bits, &streams.structure);
+        let bytes = bits.finish();
+        let mut cur = ByteCursor::new(&meta);
+        let structure_meta = StructureMeta::bits(&mut cur, symbols.len()).unwrap();
+        let items = structure_meta.read(&mut BitReader::new(&bytes), 7).unwrap();
+        let back = join(&items, &streams.corrections, symbols.len(), true).unwrap();
+        assert_eq!(back, symbols);
+        assert!(join(&items, &streams.corrections, symbols.len(), false).is_err());
+    }
+
+    #[test]
+    fn centres_round_trip_and_hostile_centres_are_refused() {
+        let raw = [3i64, 2, 2, 1, 0, 4, 2];
+        let values: Vec<u64> = raw.iter().map(|&v| zigzag(v)).collect();
+        let (mut meta, mut bits) = (Vec::new(), BitWriter::new());
+        put_centred_stream(&mut meta, &mut bits, &values);
+        let bytes = bits.finish();
+        let mut cur = ByteCursor::new(&meta);
+        let centre = get_centre(&mut cur).unwrap();
+        assert_eq!(centre, 2, "the values cluster around 2");
+        let meta = get_meta(&mut cur).unwrap();
+        let mut back = get_stream(&mut BitReader::new(&bytes), raw.len(), meta).unwrap();
+        uncentre(&mut back, centre);
+        assert_eq!(back, values);
+        for hostile in [u64::MAX, zigzag(4), zigzag(-4)] {
+            let mut meta = Vec::new();
+            put_varint(&mut meta, hostile);
+            assert!(get_centre(&mut ByteCursor::new(&meta)).is_err());
+        }
     }
 
     #[test]
