@@ -8,7 +8,7 @@ use std::ops::ControlFlow;
 
 use glam::Vec3;
 
-use crate::skeleton::{NodeId, Skeleton};
+use crate::skeleton::Skeleton;
 
 /// Most grid cells; larger scenes get coarser cells instead of more memory.
 const MAX_CELLS: usize = 1 << 21;
@@ -30,23 +30,19 @@ impl Frustum {
     /// Frustums of all internodes of non-zero length, in internode order.
     pub(crate) fn of_skeleton(tree: &Skeleton) -> Vec<Frustum> {
         tree.internodes()
-            .filter_map(|(p, c)| Frustum::between(tree, p, c))
+            .filter_map(|(p, c)| {
+                let (a, b) = (tree.position(p), tree.position(c));
+                let length_m = a.distance(b);
+                (length_m > 1e-6).then(|| Frustum {
+                    a,
+                    b,
+                    radius_a_m: tree.radius(p),
+                    radius_b_m: tree.radius(c),
+                    axis: (b - a) / length_m,
+                    length_m,
+                })
+            })
             .collect()
-    }
-
-    /// The frustum of the internode from `parent` to `child`; `None` when
-    /// it has no length.
-    pub(crate) fn between(tree: &Skeleton, parent: NodeId, child: NodeId) -> Option<Frustum> {
-        let (a, b) = (tree.position(parent), tree.position(child));
-        let length_m = a.distance(b);
-        (length_m > 1e-6).then(|| Frustum {
-            a,
-            b,
-            radius_a_m: tree.radius(parent),
-            radius_b_m: tree.radius(child),
-            axis: (b - a) / length_m,
-            length_m,
-        })
     }
 
     /// Radius at axial fraction `t` in `[0, 1]`.

@@ -35,7 +35,6 @@ use glam::Vec3;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::geometry::{Frustum, Grid};
 use super::random::{Stream, any_perpendicular, rotate, seeded, spread, unit};
 use crate::skeleton::{Anchor, NodeId, Skeleton};
 
@@ -51,8 +50,6 @@ const GROUND_CLEARANCE_M: f32 = 0.3;
 
 /// Stems shorter than this are not grown (a bud, not a branch), in metres.
 const MIN_STEM_M: f32 = 0.05;
-/// Grid cell for the buried-twig test, in metres.
-const BURIED_GRID_CELL_M: f32 = 0.5;
 
 /// Weber & Penn's crown shapes: how level-1 branch length varies with height.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -298,41 +295,9 @@ pub fn generate(params: &TreeParams, seed: u64, anchor: Anchor) -> Skeleton {
     while let Some(stem) = pending.pop() {
         grower.grow(stem, &mut pending);
     }
-    let mut skeleton = prune_buried_twigs(&grower.skeleton);
+    let mut skeleton = grower.skeleton;
     skeleton.order_main_extension_first();
     skeleton.canonical()
-}
-
-/// Removes lateral subtrees that lie wholly inside other wood. Weber–Penn
-/// children start on their parent's axis (weber-penn §2.3.2), so a steep,
-/// short twig on a thick stem (a Lombardy poplar's) can end before it ever
-/// reaches the bark. Such a twig does not exist in a real tree: no scan can
-/// see it and no reconstruction can find it, so it has no place in the truth.
-fn prune_buried_twigs(tree: &Skeleton) -> Skeleton {
-    let internodes: Vec<(NodeId, Frustum)> = tree
-        .internodes()
-        .filter_map(|(p, c)| Some((c, Frustum::between(tree, p, c)?)))
-        .collect();
-    let boxes: Vec<_> = internodes.iter().map(|(_, f)| f.bounds()).collect();
-    let grid = Grid::build(&boxes, BURIED_GRID_CELL_M);
-    let inside_other_wood = |id: NodeId| {
-        let p = tree.position(id);
-        grid.items_at(p)
-            .iter()
-            .any(|&j| internodes[j as usize].1.contains(p))
-    };
-    // Parents precede children, so a reverse sweep sees every child first.
-    let mut buried = vec![false; tree.len()];
-    for id in tree.ids().skip(1).rev() {
-        buried[id.index()] =
-            tree.children(id).iter().all(|c| buried[c.index()]) && inside_other_wood(id);
-    }
-    let mut keep = vec![true; tree.len()];
-    for id in tree.ids().skip(1) {
-        let parent_gone = tree.parent(id).is_some_and(|p| !keep[p.index()]);
-        keep[id.index()] = !parent_gone && !buried[id.index()];
-    }
-    tree.retain(&keep)
 }
 
 /// One stem (or the part of it beyond a dichotomous split) to be grown.
@@ -633,30 +598,5 @@ fn orthonormal(v: Vec3, dir: Vec3) -> Vec3 {
         p / len
     } else {
         any_perpendicular(dir)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use glam::Vec3;
-
-    use super::prune_buried_twigs;
-    use crate::skeleton::{Anchor, NodeId, Skeleton};
-
-    /// On a 0.3 m stem, a steep twig that ends 0.1 m from the axis never
-    /// reaches the bark and goes; one that leaves the stem stays, whole.
-    #[test]
-    fn twigs_that_never_leave_their_stems_wood_are_pruned() {
-        let mut tree = Skeleton::new(Anchor::default(), 0.3);
-        let low = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
-        tree.add_child(low, Vec3::new(0.0, 0.0, 3.0), 0.25);
-        let buried = tree.add_child(low, Vec3::new(0.05, 0.0, 1.4), 0.02);
-        tree.add_child(buried, Vec3::new(0.1, 0.0, 1.8), 0.01);
-        let leaving = tree.add_child(low, Vec3::new(0.2, 0.0, 1.3), 0.03);
-        tree.add_child(leaving, Vec3::new(1.0, 0.0, 1.8), 0.01);
-        let pruned = prune_buried_twigs(&tree);
-        assert_eq!(pruned.len(), tree.len() - 2);
-        let (_, top) = pruned.bounds();
-        assert!((top.x - 1.0).abs() < 1e-6, "the leaving twig lost its tip");
     }
 }
