@@ -188,8 +188,9 @@ fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Ve
 /// Replaces pipe-model radii by measured ones where the data supports a
 /// measurement, smooths them along the tree (each node averaged with its
 /// parent and main child), and restores the rule that radii never grow
-/// towards the tips with the closest radii that keep it ([`monotone_fit`]). With a fitted trunk the measured values are capped at
-/// `max_over_pipe` times the pipe model, so that leaves caught between branches cannot
+/// towards the tips with the closest radii that keep it ([`monotone_fit`]).
+/// With a fitted trunk the measured values are capped at `max_over_pipe`
+/// times the pipe model, so that leaves caught between branches cannot
 /// inflate a twig.
 fn blend_measured(
     skeleton: &mut Skeleton,

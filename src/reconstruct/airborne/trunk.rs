@@ -124,8 +124,9 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     // Algorithm 1's kNN pass links the trunk to the crown points around it
     // instead of letting the trunk form a closed clique.
     let spacing = params.neighbour_radius_m * 0.5;
-    let column_xy = terrain.and_then(|t| stem_column(tree, t, half_diagonal, centre_xy));
-    let (rule, points) = match (eq3, column_xy) {
+    // The stem column is only looked for where Eq. 3 does not apply.
+    let column_xy = || terrain.and_then(|t| stem_column(tree, t, half_diagonal, centre_xy));
+    let (rule, points) = match (eq3, eq3.is_none().then(column_xy).flatten()) {
         (Some(n), _) => {
             // Eq. 3: v_t = v_low − n_avg·t, t = h / n_avg.z reaches the ground.
             let h = v_low.z - ground_at(v_low.truncate());
