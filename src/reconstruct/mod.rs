@@ -394,14 +394,19 @@ impl Survey {
         } else {
             (Mode::Airborne, "sparse scan or trunk not seen all around")
         };
+        // Huge clouds skip the spacing sample (NaN): say so, not "NaN m".
+        let spacing = if self.spacing_m.is_finite() {
+            format!("{:.3} m", self.spacing_m)
+        } else {
+            "not sampled".to_string()
+        };
         let reason = format!(
             "{verdict}: {:.0} points/m² of crown projection (dense from {:.0}), trunk coverage \
-             {:.2} (dense from {:.2}), median point spacing {:.3} m (dense up to {:.3})",
+             {:.2} (dense from {:.2}), median point spacing {spacing} (dense up to {:.3} m)",
             self.density_pts_per_m2,
             t.min_density_pts_per_m2,
             self.trunk_coverage,
             t.min_trunk_coverage,
-            self.spacing_m,
             t.max_dense_spacing_m
         );
         (mode, reason)
@@ -475,6 +480,19 @@ fn sampled_spacing(points: &[Vec3]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_huge_clouds_unsampled_spacing_is_named_not_printed_as_nan() {
+        let survey = Survey {
+            density_pts_per_m2: 5000.0,
+            trunk_coverage: 1.0,
+            spacing_m: f32::NAN,
+        };
+        let (mode, reason) = survey.choose(&AutoThresholds::default());
+        assert_eq!(mode, Mode::Dense);
+        assert!(reason.contains("spacing not sampled"), "{reason}");
+        assert!(!reason.contains("NaN"), "{reason}");
+    }
 
     #[test]
     fn eigenvalues_of_a_diagonal_and_a_rotated_matrix() {
