@@ -189,9 +189,8 @@ fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
     if area_m2 <= 0.0 {
         return 0.0;
     }
-    let step = SURFACE_STEP_M.max((area_m2 / MAX_SURFACE_SAMPLES).sqrt());
-    let index = PointIndex::new(points);
-    let (mut supported, mut total) = (0.0f64, 0.0f64);
+    let step = surface_step_m(area_m2);
+    let mut tally = SupportTally::new(points);
     for c in cones {
         let axis = c.b - c.a;
         let len = axis.length();
@@ -211,21 +210,55 @@ fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
             let weight = f64::from(c.lateral_area()) / (along * around) as f64;
             for j in 0..around {
                 let phi = j as f32 / around as f32 * std::f32::consts::TAU;
-                let q = centre + (e1 * phi.cos() + e2 * phi.sin()) * r;
-                total += weight;
-                if index
-                    .nearest(q)
-                    .is_some_and(|n| n.distance_sq <= NEAR_M * NEAR_M)
-                {
-                    supported += weight;
-                }
+                tally.add(centre + (e1 * phi.cos() + e2 * phi.sin()) * r, weight);
             }
         }
     }
-    if total > 0.0 {
-        (supported / total) as f32
-    } else {
-        0.0
+    tally.share()
+}
+
+/// Spacing of the surface samples for a surface of this area: 2 cm, coarser
+/// when that would exceed [`MAX_SURFACE_SAMPLES`].
+pub(super) fn surface_step_m(area_m2: f32) -> f32 {
+    SURFACE_STEP_M.max((area_m2 / MAX_SURFACE_SAMPLES).sqrt())
+}
+
+/// Area-weighted count of surface samples that have a cloud point within
+/// [`NEAR_M`]: the "supported surface" of both the cylinder and the mesh fit.
+pub(super) struct SupportTally {
+    index: PointIndex,
+    supported: f64,
+    total: f64,
+}
+
+impl SupportTally {
+    pub(super) fn new(points: &[Vec3]) -> Self {
+        Self {
+            index: PointIndex::new(points),
+            supported: 0.0,
+            total: 0.0,
+        }
+    }
+
+    /// Counts one surface sample standing for `weight` square metres.
+    pub(super) fn add(&mut self, sample: Vec3, weight: f64) {
+        self.total += weight;
+        if self
+            .index
+            .nearest(sample)
+            .is_some_and(|n| n.distance_sq <= NEAR_M * NEAR_M)
+        {
+            self.supported += weight;
+        }
+    }
+
+    /// The supported share of the area counted so far (0 for no area).
+    pub(super) fn share(&self) -> f32 {
+        if self.total > 0.0 {
+            (self.supported / self.total) as f32
+        } else {
+            0.0
+        }
     }
 }
 

@@ -15,16 +15,16 @@
 //!   (median splits, nearest-first traversal pruned by box distance).
 //! - Surface support: the triangles are sampled by area (about one sample
 //!   per 2 cm × 2 cm, at least one per triangle, each weighted by its share
-//!   of the area) and a sample is supported when [`PointIndex`] finds a cloud
-//!   point within 5 cm of it.
+//!   of the area) and a sample is supported when
+//!   [`PointIndex`](crate::spatial::PointIndex) finds a cloud point within
+//!   5 cm of it (the same tally as the cylinder fit's).
 
 use glam::Vec3;
 
-use super::fit::{MAX_SURFACE_SAMPLES, NEAR_M, SURFACE_STEP_M, SurfaceFit, TIGHT_M};
+use super::fit::{NEAR_M, SupportTally, SurfaceFit, TIGHT_M, surface_step_m};
 use crate::cloud::PointCloud;
 use crate::mesh::Mesh;
 use crate::skeleton::Anchor;
-use crate::spatial::PointIndex;
 
 /// Triangles per BVH leaf.
 const LEAF_TRIANGLES: usize = 4;
@@ -93,28 +93,17 @@ fn supported_share(triangles: &[Triangle], points: &[Vec3], area_m2: f32) -> f32
     if area_m2 <= 0.0 {
         return 0.0;
     }
-    let step = SURFACE_STEP_M.max((area_m2 / MAX_SURFACE_SAMPLES).sqrt());
-    let index = PointIndex::new(points);
-    let (mut supported, mut total) = (0.0f64, 0.0f64);
+    let step = surface_step_m(area_m2);
+    let mut tally = SupportTally::new(points);
     for t in triangles {
         let area = t.area();
         let samples = (area / (step * step)).ceil().max(1.0) as usize;
         let weight = f64::from(area) / samples as f64;
         for k in 0..samples {
-            total += weight;
-            if index
-                .nearest(t.sample(k))
-                .is_some_and(|n| n.distance_sq <= NEAR_M * NEAR_M)
-            {
-                supported += weight;
-            }
+            tally.add(t.sample(k), weight);
         }
     }
-    if total > 0.0 {
-        (supported / total) as f32
-    } else {
-        0.0
-    }
+    tally.share()
 }
 
 /// One triangle's corners.
