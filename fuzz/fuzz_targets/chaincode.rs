@@ -6,7 +6,11 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use silva::encode::chaincode::{ChainCode, Limits, decode, reduce_lod};
+use silva::encode::chaincode::{ChainCode, Limits};
+
+#[path = "../checks/chaincode.rs"]
+mod checks;
+use checks::check_accepted;
 
 fuzz_target!(|data: &[u8]| {
     // Small limits keep each run fast; the limits themselves are under test.
@@ -24,26 +28,3 @@ fuzz_target!(|data: &[u8]| {
         }
     }
 });
-
-/// Round trips through the plain form and the compressed kinds, and checks
-/// that decoding and LOD reduction stay consistent with the code.
-fn check_accepted(code: &ChainCode, limits: &Limits) {
-    let again = ChainCode::from_bytes(&code.to_bytes(), limits);
-    assert_eq!(again.as_ref(), Ok(code), "plain form round trip");
-    let single = ChainCode::decompress(&code.compress_single_string(), limits);
-    assert_eq!(single.as_ref(), Ok(code), "kind 1 round trip");
-    if let Some(split) = code.compress_split() {
-        let back = ChainCode::decompress(&split, limits);
-        assert_eq!(back.as_ref(), Ok(code), "kind 3 round trip");
-    }
-    if let Some(split) = code.compress_split_v1() {
-        let back = ChainCode::decompress(&split, limits);
-        assert_eq!(back.as_ref(), Ok(code), "kind 2 round trip");
-    }
-    if let Ok(skeleton) = decode(code) {
-        assert_eq!(skeleton.len(), code.radii_q().len(), "one node per radius");
-    }
-    let lod = reduce_lod(code, 0.05);
-    assert_eq!(reduce_lod(&lod, 0.1), reduce_lod(code, 0.1), "LOD composes");
-    let _ = decode(&lod);
-}

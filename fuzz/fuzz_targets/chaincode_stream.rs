@@ -1,13 +1,17 @@
 //! Fuzzes the compressed chain code decoder (`ChainCode::decompress`): the
 //! single-string form (kind 1: BWT, MTF, interpolative code) and the split
-//! streams (kind 2 of version 1, kind 3), then the raw code decoder on whatever it accepts. Any
-//! input must give Ok or a typed error, never a panic, a hang or an
-//! unbounded allocation; an accepted code must survive every byte form
-//! unchanged.
+//! streams (kind 2 of version 1, kind 3), then the checks of
+//! `checks/chaincode.rs` on whatever it accepts. Any input must give Ok or a
+//! typed error, never a panic, a hang or an unbounded allocation; an
+//! accepted code must survive every byte form unchanged.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use silva::encode::chaincode::{ChainCode, Limits, decode, reduce_lod};
+use silva::encode::chaincode::{ChainCode, Limits};
+
+#[path = "../checks/chaincode.rs"]
+mod checks;
+use checks::check_accepted;
 
 fuzz_target!(|data: &[u8]| {
     // Small limits keep each run fast; the limits themselves are under test.
@@ -21,14 +25,7 @@ fuzz_target!(|data: &[u8]| {
     framed.extend_from_slice(data);
     for bytes in [data, &framed[..]] {
         if let Ok(code) = ChainCode::decompress(bytes, &limits) {
-            let plain = ChainCode::from_bytes(&code.to_bytes(), &limits);
-            assert_eq!(plain.as_ref(), Ok(&code), "plain form round trip");
-            let again = ChainCode::decompress(&code.compress(), &limits);
-            assert_eq!(again.as_ref(), Ok(&code), "compressed round trip");
-            if let Ok(skeleton) = decode(&code) {
-                assert_eq!(skeleton.len(), code.radii_q().len(), "one node per radius");
-            }
-            let _ = decode(&reduce_lod(&code, 0.05));
+            check_accepted(&code, &limits);
         }
     }
 });
