@@ -327,8 +327,8 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| {
                 r.encoding
                     .as_ref()
-                    .and_then(|e| e.chain.iter().find(|c| c.resolution == 5.0))
-                    .map(|c| format!("{:.2}", c.bytes_per_internode))
+                    .and_then(|e| e.chain.iter().find(|c| c.code.resolution == 5.0))
+                    .map(|c| format!("{:.2}", c.code.bytes_per_internode))
             },
         },
         Column {

@@ -34,3 +34,12 @@ pub fn decode_stored(bytes: &[u8]) -> crate::Result<Skeleton> {
     let ls = lsystem::LsJson::parse(text, &limits)?;
     Ok(lsystem::decode(&ls, &limits)?)
 }
+
+/// Length of `bytes` after gzip at maximum compression: the "gzip" size
+/// that issue 4 reports beside each encoding's own (in memory, no IO).
+pub fn gzip_len(bytes: &[u8]) -> usize {
+    use std::io::Write;
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(bytes).expect("writing to memory cannot fail");
+    gz.finish().expect("writing to memory cannot fail").len()
+}

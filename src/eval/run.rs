@@ -14,8 +14,8 @@ use super::mesh_fit::mesh_fit;
 use super::report::{Source, timed_median};
 use crate::cityjson::lod_figures;
 use crate::cloud::PointCloud;
-use crate::encode::chaincode;
 use crate::encode::lsystem::{self, LsJson, LsOptions};
+use crate::encode::{chaincode, gzip_len};
 use crate::mesh::{Lod, build_mesh};
 use crate::reconstruct::metrics::TreeMetrics;
 use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
@@ -125,27 +125,13 @@ pub struct EncodingFigures {
     pub chain: Vec<ChainRow>,
 }
 
-/// Chain code figures at one resolution.
+/// Chain code figures at one resolution: the sizes, node error and LOD
+/// levels of [`chaincode::stats`], and the decoding time.
 #[derive(Debug, Clone, Serialize)]
 pub struct ChainRow {
-    /// Resolution r (voxels per mean internode).
-    pub resolution: f32,
-    /// Symbols of the code.
-    pub symbols: usize,
-    /// Plain binary bytes.
-    pub bytes_binary: usize,
-    /// Gzip bytes.
-    pub bytes_gzip: usize,
-    /// Interpolative-compressed bytes.
-    pub bytes_interpolative: usize,
-    /// Interpolative bytes per internode.
-    pub bytes_per_internode: f64,
-    /// Largest node error, in metres.
-    pub max_error_m: f64,
-    /// The stated bound √3·d/2, in metres.
-    pub error_bound_m: f64,
-    /// Internodes left at each LOD threshold of the code.
-    pub lod_internodes: Vec<usize>,
+    /// Sizes, error and levels of detail.
+    #[serde(flatten)]
+    pub code: chaincode::ChainStats,
     /// Decompress + decode time, in milliseconds.
     pub decode_ms: f64,
 }
@@ -283,24 +269,9 @@ fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
         chaincode::ChainCode::decompress(&bytes, &limits).and_then(|c| chaincode::decode(&c))
     });
     Some(ChainRow {
-        resolution,
-        symbols: st.symbols,
-        bytes_binary: st.bytes_binary,
-        bytes_gzip: st.bytes_gzip,
-        bytes_interpolative: st.bytes_interpolative,
-        bytes_per_internode: st.bytes_per_internode,
-        max_error_m: st.max_error_m,
-        error_bound_m: st.error_bound_m,
-        lod_internodes: st.lod.iter().map(|l| l.internodes).collect(),
+        code: st,
         decode_ms: dec.as_secs_f64() * 1e3,
     })
-}
-
-fn gzip_len(bytes: &[u8]) -> usize {
-    use std::io::Write;
-    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
-    gz.write_all(bytes).expect("writing to memory cannot fail");
-    gz.finish().expect("writing to memory cannot fail").len()
 }
 
 fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> TruthFigures {

@@ -2,15 +2,13 @@
 //! of the paper's Tables 3 and 5, with the measured node error and the sizes
 //! of the reduced levels of detail.
 
-use std::io::Write;
-
-use flate2::Compression;
-use flate2::write::GzEncoder;
+use serde::Serialize;
 
 use super::{
     ChainCode, ChainError, ChainOptions, Resolution, decode, encode, encode_order, lod_thresholds,
     reduce_lod,
 };
+use crate::encode::gzip_len;
 use crate::skeleton::{NodeId, Skeleton};
 
 /// Number of levels of detail reported, the full model included (as in the
@@ -18,7 +16,7 @@ use crate::skeleton::{NodeId, Skeleton};
 pub const LOD_LEVELS: usize = 4;
 
 /// Sizes and error of one skeleton's chain code at one resolution.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChainStats {
     /// The resolution `r` (NaN when a voxel size was given).
     pub resolution: f32,
@@ -47,7 +45,7 @@ pub struct ChainStats {
 }
 
 /// Size of one reduced level of detail.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LodStats {
     /// Lateral branches with a thinner base were dropped, metres.
     pub radius_threshold_m: f32,
@@ -122,11 +120,4 @@ fn lod_stats(code: &ChainCode, radius_threshold_m: f32) -> LodStats {
         symbols: reduced.symbols().len(),
         bytes_interpolative: reduced.compress().len(),
     }
-}
-
-/// Length of `bytes` after gzip at maximum compression.
-fn gzip_len(bytes: &[u8]) -> usize {
-    let mut gz = GzEncoder::new(Vec::new(), Compression::best());
-    gz.write_all(bytes).expect("writing to memory cannot fail");
-    gz.finish().expect("writing to memory cannot fail").len()
 }
