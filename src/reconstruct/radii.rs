@@ -230,12 +230,7 @@ fn section_radius(section: &[Vec2], noise_m: f32) -> f32 {
     let Some(circle) = kasa_fit(section).map(|c| refine_circle(section, c)) else {
         return spread;
     };
-    let rms = (section
-        .iter()
-        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
-        .sum::<f32>()
-        / section.len() as f32)
-        .sqrt();
+    let rms = circle_rms(section, circle);
     let plausible = circle.radius.is_finite()
         && circle.radius >= spread
         && circle.radius <= 2.0 * spread
@@ -415,12 +410,7 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
         return estimate(format!("no circle fits the {} trunk points", flat.len()));
     };
     let sectors = sectors_seen(&inliers, circle.centre);
-    let rms = (inliers
-        .iter()
-        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
-        .sum::<f32>()
-        / inliers.len() as f32)
-        .sqrt();
+    let rms = circle_rms(&inliers, circle);
     let fitted = TrunkFit {
         radius_m: circle.radius,
         method: DbhMethod::Fitted,
@@ -682,6 +672,15 @@ fn refine_circle(points: &[Vec2], start: Circle) -> Circle {
     c
 }
 
+/// RMS distance of `points` to `circle`.
+fn circle_rms(points: &[Vec2], circle: Circle) -> f32 {
+    let sum: f32 = points
+        .iter()
+        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
+        .sum();
+    (sum / points.len().max(1) as f32).sqrt()
+}
+
 /// Number of 30° sectors around `centre` that hold at least one point.
 fn sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
     let mut seen = [false; 12];
@@ -813,6 +812,13 @@ mod tests {
         assert!(fit.reason.contains("near the trunk axis"), "{}", fit.reason);
     }
 
+    /// Trust in measured radii without a fitted trunk (no cap).
+    const TRUST_UNFITTED: Trust = Trust {
+        fitted_trunk: false,
+        max_over_pipe: 10.0,
+        min_radius_m: 0.002,
+    };
+
     /// A 5 cm branch measured right everywhere except one section whose
     /// points a side twig took (1 cm): the monotone fit pools that dip with
     /// the thicker sections above it instead of clamping everything above
@@ -832,12 +838,7 @@ mod tests {
                 _ => Some(0.05),
             })
             .collect();
-        let trust = Trust {
-            fitted_trunk: false,
-            max_over_pipe: 10.0,
-            min_radius_m: 0.002,
-        };
-        blend_measured(&mut tree, &measured, trust);
+        blend_measured(&mut tree, &measured, TRUST_UNFITTED);
         for id in tree.ids().skip(1) {
             let parent = tree.parent(id).unwrap_or(NodeId::ROOT);
             assert!(tree.radius(id) <= tree.radius(parent) + 1e-6);
@@ -869,12 +870,7 @@ mod tests {
                 })
             })
             .collect();
-        let trust = Trust {
-            fitted_trunk: false,
-            max_over_pipe: 10.0,
-            min_radius_m: 0.002,
-        };
-        blend_measured(&mut tree, &measured, trust);
+        blend_measured(&mut tree, &measured, TRUST_UNFITTED);
         assert!(
             (tree.radius(twig) - 0.01).abs() < 1e-4,
             "{}",
