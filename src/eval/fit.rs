@@ -5,7 +5,8 @@
 //! the data supports.
 //!
 //! Each internode is a truncated cone from the parent's radius to the
-//! child's (the same surface as [`crate::reconstruct::metrics::wood_volume_m3`]).
+//! child's ([`crate::reconstruct::metrics::wood_volume_m3`] uses the same
+//! cones, except that a lateral's first internode is a cylinder there).
 //! A point's distance to the model is its distance to the nearest cone's
 //! lateral surface (or to its end disc beyond the ends). Candidate cones are
 //! found through [`PointIndex`] over samples along the axes.

@@ -12,6 +12,10 @@
 //!   `r_tip` is chosen so that the trunk at breast height matches the DBH.
 //!   Radii then taper linearly along each chain and never grow towards the
 //!   tips.
+//! - Dense scans: where enough points surround an internode its radius is
+//!   measured ([`section_radius`]: spread less the scanner noise, or a
+//!   circle fit on one-sided thick sections), smoothed along its branch and
+//!   fitted to the rule that radii never grow towards the tips.
 
 use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
@@ -22,6 +26,12 @@ use super::metrics::Crown;
 use crate::cloud::PointCloud;
 use crate::skeleton::{NodeId, Skeleton};
 use crate::spatial::PointIndex;
+
+/// Fewest points of a section for a circle fit ([`section_radius`]).
+const MIN_CIRCLE_POINTS: usize = 12;
+/// Sections whose spread radius is below this are not circle-fitted (a
+/// twig's few points fit any small circle), in metres.
+const MIN_CIRCLE_RADIUS_M: f32 = 0.03;
 
 /// Settings of the radius stage.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,22 +148,37 @@ pub fn assign_radii(
     let reference = breast_height_node(skeleton, params.breast_height_m);
     pipe_model(skeleton, reference, trunk.radius_m, params.min_radius_m);
     if params.measured_radii {
-        let measured = measured_radii(skeleton, &tree.points, params.min_section_points);
+        let noise = if trunk.method == DbhMethod::Fitted {
+            trunk.rms_m
+        } else {
+            0.0
+        };
+        let measured = measured_radii(skeleton, &tree.points, params.min_section_points, noise);
         blend_measured(
             skeleton,
             &measured,
-            trunk.method == DbhMethod::Fitted,
-            params.max_measured_over_pipe,
+            Trust {
+                fitted_trunk: trunk.method == DbhMethod::Fitted,
+                max_over_pipe: params.max_measured_over_pipe,
+                min_radius_m: params.min_radius_m,
+            },
         );
     }
     trunk
 }
 
-/// Per node, the median distance from the points around its incoming
-/// internode to that internode's axis, where at least `min_points` points
-/// are closest to it. Points pick their internode through the nearest of
-/// axis samples taken every 5 cm.
-fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Vec<Option<f32>> {
+/// Per node, the radius of its incoming internode measured from the points
+/// around it, where at least `min_points` points are closest to it. Points
+/// pick their internode through the nearest of axis samples taken every
+/// 5 cm; each is measured across the internode's axis line (a point past a
+/// twig's last node measured from that node would count length as girth).
+/// See [`section_radius`] for the radius of one section.
+fn measured_radii(
+    skeleton: &Skeleton,
+    points: &[Vec3],
+    min_points: usize,
+    noise_m: f32,
+) -> Vec<Option<f32>> {
     let mut samples = Vec::new();
     let mut owner = Vec::new();
     for (p, c) in skeleton.internodes() {
@@ -164,53 +189,106 @@ fn measured_radii(skeleton: &Skeleton, points: &[Vec3], min_points: usize) -> Ve
             owner.push(c);
         }
     }
-    let mut found: Vec<Vec<f32>> = vec![Vec::new(); skeleton.len()];
+    let mut found: Vec<Vec<Vec2>> = vec![Vec::new(); skeleton.len()];
     let index = PointIndex::new(&samples);
     for &q in points {
         if let Some(n) = index.nearest(q) {
             let c = owner[n.index];
             let p = skeleton.parent(c).unwrap_or(NodeId::ROOT);
-            let d = point_segment_distance(q, skeleton.position(p), skeleton.position(c));
-            found[c.index()].push(d);
+            if let Some(d) = radial_offset(q, skeleton.position(p), skeleton.position(c)) {
+                found[c.index()].push(d);
+            }
         }
     }
     found
-        .into_iter()
-        .map(|mut d| {
-            (d.len() >= min_points.max(1)).then(|| {
-                let mid = d.len() / 2;
-                *d.select_nth_unstable_by(mid, f32::total_cmp).1
-            })
+        .iter()
+        .map(|section| {
+            (section.len() >= min_points.max(1)).then(|| section_radius(section, noise_m))
         })
         .collect()
 }
 
-/// Replaces pipe-model radii by measured ones where the data supports a
-/// measurement, smooths them along the tree (each node averaged with its
-/// parent and main child), and restores the rule that radii never grow
-/// towards the tips with the closest radii that keep it ([`monotone_fit`]).
-/// With a fitted trunk the measured values are capped at `max_over_pipe`
-/// times the pipe model, so that leaves caught between branches cannot
-/// inflate a twig.
-fn blend_measured(
-    skeleton: &mut Skeleton,
-    measured: &[Option<f32>],
+/// The radius of one section from its points' offsets from the axis, in the
+/// plane across it.
+///
+/// - The median distance to the axis, with the scanner's noise `noise_m`
+///   (the trunk fit's RMS) taken out in quadrature: on a twig whose radius
+///   is near the noise, the spread alone would double it.
+/// - A branch seen from one side has its axis, found from the points, moved
+///   towards the visible bark, so the spread reads too small; where the
+///   section holds enough points on an arc, a circle fit (Kåsa's, refined
+///   geometrically, as for the trunk) gives the radius instead, when it
+///   fits the points tightly and is not smaller than the spread.
+fn section_radius(section: &[Vec2], noise_m: f32) -> f32 {
+    let mut d: Vec<f32> = section.iter().map(|o| o.length()).collect();
+    let mid = d.len() / 2;
+    let spread = *d.select_nth_unstable_by(mid, f32::total_cmp).1;
+    let spread = (spread * spread - noise_m * noise_m).max(0.0).sqrt();
+    if section.len() < MIN_CIRCLE_POINTS || spread < MIN_CIRCLE_RADIUS_M {
+        return spread;
+    }
+    let Some(circle) = kasa_fit(section).map(|c| refine_circle(section, c)) else {
+        return spread;
+    };
+    let rms = circle_rms(section, circle);
+    let plausible = circle.radius.is_finite()
+        && circle.radius >= spread
+        && circle.radius <= 2.0 * spread
+        && rms <= 0.1 * circle.radius + noise_m
+        && sectors_seen(section, circle.centre) >= 3;
+    if plausible { circle.radius } else { spread }
+}
+
+/// Offset of `q` from the axis line through `a` and `b`, in the plane
+/// across it (`None` for a degenerate internode).
+fn radial_offset(q: Vec3, a: Vec3, b: Vec3) -> Option<Vec2> {
+    let axis = (b - a).try_normalize()?;
+    let (u, v) = axis.any_orthonormal_pair();
+    let off = q - a;
+    Some(Vec2::new(off.dot(u), off.dot(v)))
+}
+
+/// How far [`blend_measured`] trusts a measured radius.
+#[derive(Debug, Clone, Copy)]
+struct Trust {
+    /// The trunk was fitted (so the pipe model is scaled to a measurement).
     fitted_trunk: bool,
+    /// Measured radii are capped at this many times the pipe model's.
     max_over_pipe: f32,
-) {
+    /// Smallest radius.
+    min_radius_m: f32,
+}
+
+/// Replaces pipe-model radii by measured ones where the data supports a
+/// measurement, smooths them along each branch (each node averaged with its
+/// parent, unless it is a lateral leaving the parent's branch, and with its
+/// main child), and restores the rule that radii never grow
+/// towards the tips with the closest radii that keep it ([`monotone_fit`]).
+/// With a fitted trunk the measured values are capped at
+/// [`Trust::max_over_pipe`] times the pipe model, so that leaves caught
+/// between branches cannot inflate a twig.
+fn blend_measured(skeleton: &mut Skeleton, measured: &[Option<f32>], trust: Trust) {
     let pipe: Vec<f32> = skeleton.ids().map(|id| skeleton.radius(id)).collect();
     let raw: Vec<f32> = skeleton
         .ids()
-        .map(|id| match measured[id.index()] {
-            Some(m) if fitted_trunk => m.min(max_over_pipe * pipe[id.index()]),
-            Some(m) => m,
-            None => pipe[id.index()],
+        .map(|id| {
+            let pipe = pipe[id.index()];
+            match measured[id.index()] {
+                Some(m) if trust.fitted_trunk => m.min(trust.max_over_pipe * pipe),
+                Some(m) => m,
+                None => pipe,
+            }
+            .max(trust.min_radius_m)
         })
         .collect();
     for id in skeleton.ids().skip(1) {
         let mut sum = raw[id.index()];
         let mut n = 1.0;
-        if let Some(p) = skeleton.parent(id).filter(|&p| p != NodeId::ROOT) {
+        // Only along the branch: a lateral is not averaged with the stem it
+        // leaves (a spur on a 30 cm trunk would get 10 cm).
+        let on_branch =
+            |p: &NodeId| *p != NodeId::ROOT && skeleton.children(*p).first() == Some(&id);
+        if let Some(p) = skeleton.parent(id).filter(on_branch) {
             sum += raw[p.index()];
             n += 1.0;
         }
@@ -332,12 +410,7 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
         return estimate(format!("no circle fits the {} trunk points", flat.len()));
     };
     let sectors = sectors_seen(&inliers, circle.centre);
-    let rms = (inliers
-        .iter()
-        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
-        .sum::<f32>()
-        / inliers.len() as f32)
-        .sqrt();
+    let rms = circle_rms(&inliers, circle);
     let fitted = TrunkFit {
         radius_m: circle.radius,
         method: DbhMethod::Fitted,
@@ -599,6 +672,15 @@ fn refine_circle(points: &[Vec2], start: Circle) -> Circle {
     c
 }
 
+/// RMS distance of `points` to `circle`.
+fn circle_rms(points: &[Vec2], circle: Circle) -> f32 {
+    let sum: f32 = points
+        .iter()
+        .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))
+        .sum();
+    (sum / points.len().max(1) as f32).sqrt()
+}
+
 /// Number of 30° sectors around `centre` that hold at least one point.
 fn sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
     let mut seen = [false; 12];
@@ -730,6 +812,13 @@ mod tests {
         assert!(fit.reason.contains("near the trunk axis"), "{}", fit.reason);
     }
 
+    /// Trust in measured radii without a fitted trunk (no cap).
+    const TRUST_UNFITTED: Trust = Trust {
+        fitted_trunk: false,
+        max_over_pipe: 10.0,
+        min_radius_m: 0.002,
+    };
+
     /// A 5 cm branch measured right everywhere except one section whose
     /// points a side twig took (1 cm): the monotone fit pools that dip with
     /// the thicker sections above it instead of clamping everything above
@@ -749,7 +838,7 @@ mod tests {
                 _ => Some(0.05),
             })
             .collect();
-        blend_measured(&mut tree, &measured, false, 10.0);
+        blend_measured(&mut tree, &measured, TRUST_UNFITTED);
         for id in tree.ids().skip(1) {
             let parent = tree.parent(id).unwrap_or(NodeId::ROOT);
             assert!(tree.radius(id) <= tree.radius(parent) + 1e-6);
@@ -757,6 +846,72 @@ mod tests {
         let radii: Vec<f32> = tree.ids().map(|id| tree.radius(id)).collect();
         assert!(radii[8] > 0.04, "{radii:?}");
         assert!((radii[2] - 0.05).abs() < 1e-6, "{radii:?}");
+    }
+
+    /// A 1 cm twig measured right on a 30 cm trunk keeps its radius: it is
+    /// not averaged with the trunk node it leaves (that gave it 10 cm).
+    #[test]
+    fn a_twig_is_not_smoothed_with_the_stem_it_leaves() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        let mut node = NodeId::ROOT;
+        for i in 1..=4 {
+            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.3);
+        }
+        let stem = NodeId::from_index(2);
+        let twig = tree.add_child(stem, Vec3::new(0.3, 0.0, 1.1), 0.3);
+        tree.add_child(twig, Vec3::new(0.6, 0.0, 1.2), 0.3);
+        let measured: Vec<Option<f32>> = tree
+            .ids()
+            .map(|id| {
+                Some(if id.index() >= twig.index() {
+                    0.01
+                } else {
+                    0.3
+                })
+            })
+            .collect();
+        blend_measured(&mut tree, &measured, TRUST_UNFITTED);
+        assert!(
+            (tree.radius(twig) - 0.01).abs() < 1e-4,
+            "{}",
+            tree.radius(twig)
+        );
+        assert!(
+            (tree.radius(stem) - 0.3).abs() < 1e-4,
+            "{}",
+            tree.radius(stem)
+        );
+    }
+
+    /// A 10 cm branch seen from one side (a half circle, 3 mm noise) whose
+    /// axis sits 4 cm towards the seen bark: the spread alone reads about
+    /// 7 cm, the circle fit on the section the true 10 cm.
+    #[test]
+    fn a_one_sided_section_is_measured_by_its_circle() {
+        let axis_error = Vec2::new(0.0, 0.04);
+        let section: Vec<Vec2> = (0..40)
+            .map(|i| {
+                let a = i as f32 / 39.0 * std::f32::consts::PI;
+                let noise = 0.003 * (((i * 7919) % 13) as f32 / 6.0 - 1.0);
+                Vec2::new(a.cos(), a.sin()) * (0.1 + noise) - axis_error
+            })
+            .collect();
+        let r = section_radius(&section, 0.003);
+        assert!((r - 0.1).abs() < 0.005, "{r}");
+    }
+
+    /// A twig of radius 4 mm scanned with 3 mm noise: the spread is taken
+    /// out in quadrature, so the twig is not read at 5 mm.
+    #[test]
+    fn the_scanner_noise_does_not_thicken_a_twig() {
+        let section: Vec<Vec2> = (0..9)
+            .map(|i| {
+                let a = i as f32 * 0.7;
+                Vec2::new(a.cos(), a.sin()) * 0.005
+            })
+            .collect();
+        let r = section_radius(&section, 0.003);
+        assert!((r - 0.004).abs() < 1e-4, "{r}");
     }
 
     #[test]
