@@ -60,6 +60,41 @@ impl Crown {
     }
 }
 
+/// Returns below the highest whose depth scales [`apex_gap_m`].
+const APEX_RETURNS: usize = 10;
+
+/// Expected height of the crown's apex above the highest return of a sparse
+/// (airborne) scan, in metres: an endpoint estimate from the spacing of the
+/// highest returns, without any tuned constant.
+///
+/// A pulse returns from inside the crown's outer shell of fine twigs or
+/// leaves, which it enters and may pass through, so returns scatter through
+/// the shell's volume. Near the apex a crown is a dome whose horizontal
+/// section grows linearly with the depth d below the apex (a paraboloid, or
+/// a ball near its top): the volume above depth d, and with it the expected
+/// number of returns above d, grows as c·d². The returns' depths are then a
+/// Poisson process with mean measure c·d², whose j-th highest return lies
+/// Γ(j + ½) / (Γ(j)·√c) below the apex on average. With k =
+/// [`APEX_RETURNS`], the depth Δ of the (k + 1)-th highest return below the
+/// highest has mean (Γ(k + 3/2)/Γ(k + 1) − Γ(3/2)) / √c, so the expected
+/// gap Γ(3/2)/√c is Δ / (∏ⱼ₌₁..ₖ (1 + 1/(2j)) − 1) = 0.37·Δ: unknown c
+/// cancels, the gap grows as the scan gets sparser (Δ ∝ 1/√density) and
+/// vanishes on dense scans. At 20 returns/m² the bare twig tips of a
+/// leaf-off crown are hardly ever hit: on synthetic scans (seeds 1–40) the
+/// highest return lay a median 0.31 m below the true top of the deciduous
+/// crowns (0.03–0.66 m). 0 for `k` or fewer points.
+pub fn apex_gap_m(points: &[Vec3]) -> f32 {
+    if points.len() <= APEX_RETURNS {
+        return 0.0;
+    }
+    let mut z: Vec<f32> = points.iter().map(|p| p.z).collect();
+    let at = z.len() - 1 - APEX_RETURNS;
+    let (_, below, highest) = z.select_nth_unstable_by(at, f32::total_cmp);
+    let top = highest.iter().copied().fold(*below, f32::max);
+    let depth_ratio = (1..=APEX_RETURNS).fold(1.0, |r, j| r * (1.0 + 0.5 / j as f32));
+    (top - *below) / (depth_ratio - 1.0)
+}
+
 /// Branch count and length for one branch order.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct OrderStats {
@@ -287,6 +322,38 @@ mod tests {
     use super::*;
     use crate::skeleton::Anchor;
     use glam::DVec3;
+
+    /// Returns spread evenly through a paraboloid dome z = 10 − d whose
+    /// section at depth d has radius √d: the highest of 400 returns lies
+    /// below the apex (0.09 m on average), and the estimated gap brings the
+    /// height back to it, on average over 100 scans.
+    #[test]
+    fn the_apex_gap_of_a_sparse_dome_reaches_its_top() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12_345);
+        let mut unit = || rng.random::<f32>();
+        let (mut raw, mut estimated) = (0.0, 0.0);
+        for _ in 0..100 {
+            // Uniform in the volume: the volume above depth d grows as d²,
+            // and each section is a uniform disc.
+            let points: Vec<Vec3> = (0..400)
+                .map(|_| {
+                    let d = 2.0 * unit().sqrt();
+                    let (r, a) = ((d * unit()).sqrt(), std::f32::consts::TAU * unit());
+                    Vec3::new(r * a.cos(), r * a.sin(), 10.0 - d)
+                })
+                .collect();
+            let highest = points.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+            raw += (highest - 10.0) / 100.0;
+            estimated += (highest + apex_gap_m(&points) - 10.0) / 100.0;
+        }
+        assert!(raw < -0.06, "highest return {raw:.3} m from the apex");
+        assert!(
+            estimated.abs() < 0.02,
+            "estimate {estimated:.3} m from the apex"
+        );
+        assert_eq!(apex_gap_m(&[Vec3::Z; APEX_RETURNS]), 0.0);
+    }
 
     #[test]
     fn hull_of_a_square_with_inner_points() {

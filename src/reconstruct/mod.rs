@@ -160,7 +160,16 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
             (out.skeleton, tree, out.notes)
         }
     };
-    let crown = metrics::Crown::measure(&skeleton, &tree_cloud);
+    let mut crown = metrics::Crown::measure(&skeleton, &tree_cloud);
+    if mode == Mode::Airborne {
+        // A sparse scan from above rarely hits the apex itself.
+        let gap = metrics::apex_gap_m(&tree_cloud.points);
+        notes.push(format!(
+            "height: highest return {:.2} m plus {gap:.2} m expected gap to the apex",
+            crown.height_m
+        ));
+        crown.height_m += gap;
+    }
     let trunk = radii::assign_radii(&mut skeleton, &tree_cloud, &crown, &opts.radii);
     notes.extend(trunk.note());
     let metrics = metrics::TreeMetrics::measure(&skeleton, &crown, &trunk);
