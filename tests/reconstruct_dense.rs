@@ -331,3 +331,35 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
     assert_eq!(m["mode"], "dense");
     assert!(m["metrics"]["height_m"].as_f64().unwrap() > 5.0);
 }
+
+/// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
+/// `silva eval --synthetic` seed 3): its thick trunk's ring breaks into
+/// pieces of bark at ragged distance fronts, and without the spur rule each
+/// piece hangs off the axis as a lateral as long as the trunk's radius,
+/// away from every true branch.
+#[test]
+fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
+    use silva::eval::compare::compare;
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Poplar),
+        3,
+        silva::Anchor::at(OFFSET),
+    );
+    let clean = TlsOptions {
+        points_per_m2: 1000.0,
+        occlusion: false,
+        ..TlsOptions::default()
+    };
+    let cloud = simulate_tls(&truth, &clean, 3);
+    let precision = |opts: &Options| {
+        let tree = reconstruct(&cloud, opts).unwrap();
+        compare(&truth, &tree.skeleton, 0.1, 0.0).precision
+    };
+    let now = precision(&dense());
+    let mut without = dense();
+    without.dense.spur_spread_bins = f32::INFINITY;
+    let before = precision(&without);
+    assert!(now > 0.97, "precision {now}");
+    assert!(before < 0.96, "precision without the spur rule {before}");
+}

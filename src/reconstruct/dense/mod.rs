@@ -22,8 +22,10 @@
 //!    points that lie well outside the circle fitted to the ring (a twig
 //!    running along the bark) are kept apart ([`Params::ring_outlier_m`]);
 //! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
-//!    (shorter than a few bins by subtree length, or, when enabled, bark
-//!    patches that never leave their stem), thick stems smoothed, Douglas–Peucker along chains,
+//!    (shorter than a few bins by subtree length; on thick stems, spurs
+//!    from the axis out to a piece of the stem's own bark; or, when
+//!    enabled, bark patches that never leave their stem), thick stems
+//!    smoothed, Douglas–Peucker along chains,
 //!    main extension first.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
@@ -110,6 +112,18 @@ pub struct Params {
     /// as whole rings, so bark patches no longer arise, and the rule cut
     /// real branches that hug their stem (poplars).
     pub stem_stub_spreads: f32,
+    /// Laterals of forks whose cross-section spread reaches this many bin
+    /// widths (a thick stem) are spurs out to a piece of the stem's own bark
+    /// when they never get farther from the fork than that spread plus
+    /// [`Params::spur_reach_bins`] bin widths (infinite: off).
+    ///
+    /// Clean synthetic TLS scans (`silva eval --synthetic 8 --scan tls
+    /// --density 1000 --no-occlusion`): median precision 97.7 → 99.0 %,
+    /// median recall 99.2 → 99.1 % (the poplars lose 0.9–1.1 points of
+    /// recall: short real twigs near their trunks go too).
+    pub spur_spread_bins: f32,
+    /// See [`Params::spur_spread_bins`].
+    pub spur_reach_bins: f32,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
@@ -148,6 +162,8 @@ impl Default for Params {
             ring_link_spacings: 4.0,
             centre_arcs: true,
             stem_stub_spreads: 0.0,
+            spur_spread_bins: 4.0,
+            spur_reach_bins: 1.5,
             smoothing_rounds: 3,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
@@ -249,11 +265,16 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     let nodes = simplify::merge_close_siblings(nodes, sections.counts, bin_m);
     let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
         .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
-    let mut skeleton = simplify::prune_short_branches(
+    let keep = simplify::noise_branches(
         &skeleton,
-        params.min_branch_bins * bin_m,
-        params.stem_stub_spreads,
+        &simplify::Pruning {
+            min_branch_m: params.min_branch_bins * bin_m,
+            stem_spreads: params.stem_stub_spreads,
+            spur_spread_m: params.spur_spread_bins * bin_m,
+            spur_reach_m: params.spur_reach_bins * bin_m,
+        },
     );
+    let mut skeleton = skeleton.retain(&keep);
     simplify::smooth_chains(&mut skeleton, params.smoothing_rounds, 2.0 * bin_m);
     let mut skeleton = simplify::douglas_peucker(
         &skeleton,

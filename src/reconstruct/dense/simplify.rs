@@ -73,15 +73,28 @@ fn compact(nodes: Vec<Node>, alive: &[bool]) -> Vec<Node> {
         .collect()
 }
 
-/// Removes lateral subtrees that are noise: shorter than `min_branch_m`
-/// (including the internode into them), or never leaving the parent stem
-/// (see [`inside_stem`]). The heaviest child of each fork always stays, so
-/// branches keep their full length.
-pub(super) fn prune_short_branches(
-    skeleton: &Skeleton,
-    min_branch_m: f32,
-    stem_spreads: f32,
-) -> Skeleton {
+/// What counts as a noise branch in [`noise_branches`].
+pub(super) struct Pruning {
+    /// Laterals shorter than this (subtree and the internode into it) are
+    /// noise, in metres.
+    pub(super) min_branch_m: f32,
+    /// Laterals that stay within this many cross-section spreads of their
+    /// stem's axis are bark patches (0: off; see [`inside_stem`]).
+    pub(super) stem_spreads: f32,
+    /// Forks whose cross-section spread reaches this, in metres, are on a
+    /// thick stem, where [`within_reach`] finds spurs (infinite: off)…
+    pub(super) spur_spread_m: f32,
+    /// …that never get farther from the fork than its spread plus this, in
+    /// metres.
+    pub(super) spur_reach_m: f32,
+}
+
+/// Marks the lateral subtrees that are noise (`false`): shorter than
+/// `min_branch_m` (including the internode into them), never leaving the
+/// parent stem (see [`inside_stem`]), or spurs of a thick stem (see
+/// [`within_reach`]). The heaviest child of each fork always stays, so
+/// branches keep their full length. `Skeleton::retain` applies the mask.
+pub(super) fn noise_branches(skeleton: &Skeleton, rule: &Pruning) -> Vec<bool> {
     let sub = skeleton.subtree_lengths();
     let weight = |c: NodeId| sub[c.index()] + skeleton.internode_length(c);
     let mut keep = vec![true; skeleton.len()];
@@ -101,15 +114,46 @@ pub(super) fn prune_short_branches(
             .copied()
             .max_by(|&a, &b| weight(a).total_cmp(&weight(b)));
         let Some(main) = heaviest else { continue };
+        let spread = skeleton.radius(v);
+        let reach_m = (spread >= rule.spur_spread_m).then_some(spread + rule.spur_reach_m);
         for &c in kids {
             if c != main
-                && (weight(c) < min_branch_m || inside_stem(skeleton, v, main, c, stem_spreads))
+                && (weight(c) < rule.min_branch_m
+                    || inside_stem(skeleton, v, main, c, rule.stem_spreads)
+                    || reach_m.is_some_and(|r| within_reach(skeleton, v, c, r)))
             {
                 keep[c.index()] = false;
             }
         }
     }
-    skeleton.retain(&keep)
+    keep
+}
+
+/// True when no node of the lateral subtree at `lateral` lies farther than
+/// `reach_m` from `fork`. On a thick stem, with the reach a little beyond
+/// the fork's cross-section spread (for a whole ring, the stem's radius),
+/// such a subtree is a spur from the stem's axis out to a piece of its own
+/// bark that a ragged distance front cut off the ring: its length is the
+/// stem's radius, which the plain length rule counts as branch. It refines
+/// AdTree's pruning of short branches (lsystem-from-adtree-skeletons
+/// §2.1.1) by counting a lateral from the stem's bark rather than its axis;
+/// a real branch leaves the bark, and the reach.
+fn within_reach(skeleton: &Skeleton, fork: NodeId, lateral: NodeId, reach_m: f32) -> bool {
+    let origin = skeleton.position(fork);
+    all_in_subtree(skeleton, lateral, |p| p.distance(origin) <= reach_m)
+}
+
+/// True when every node of the subtree at `top` has a position that
+/// `holds`.
+fn all_in_subtree(skeleton: &Skeleton, top: NodeId, holds: impl Fn(Vec3) -> bool) -> bool {
+    let mut stack = vec![top];
+    while let Some(id) = stack.pop() {
+        if !holds(skeleton.position(id)) {
+            return false;
+        }
+        stack.extend_from_slice(skeleton.children(id));
+    }
+    true
 }
 
 /// True when the lateral subtree at `lateral` stays within `spreads` cross-section
@@ -126,15 +170,10 @@ fn inside_stem(
     let origin = skeleton.position(fork);
     let axis = (skeleton.position(main) - origin).normalize_or(Vec3::Z);
     let limit = spreads * skeleton.radius(fork);
-    let mut stack = vec![lateral];
-    while let Some(id) = stack.pop() {
-        let d = skeleton.position(id) - origin;
-        if (d - axis * d.dot(axis)).length() > limit {
-            return false;
-        }
-        stack.extend_from_slice(skeleton.children(id));
-    }
-    true
+    all_in_subtree(skeleton, lateral, |p| {
+        let d = p - origin;
+        (d - axis * d.dot(axis)).length() <= limit
+    })
 }
 
 /// Smooths node positions along thick chains (each interior node whose
@@ -270,7 +309,13 @@ mod tests {
             node([0.05, 0.0, 1.05], Some(1)), // a 7 cm stub
         ];
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
-        let pruned = prune_short_branches(&s, 0.2, 1.5);
+        let rule = Pruning {
+            min_branch_m: 0.2,
+            stem_spreads: 1.5,
+            spur_spread_m: f32::INFINITY,
+            spur_reach_m: 0.0,
+        };
+        let pruned = s.retain(&noise_branches(&s, &rule));
         assert_eq!(pruned.len(), 4);
         let straight = douglas_peucker(&pruned, 0.01, 0.0);
         assert_eq!(straight.len(), 2);
@@ -278,5 +323,46 @@ mod tests {
             straight.position(NodeId::from_index(1)),
             Vec3::new(0.0, 0.0, 3.0)
         );
+    }
+
+    /// A 0.3 m-radius stem (spread 0.3 at the fork) with a spur from its
+    /// axis to its bark (0.32 m by length, so the length rule keeps it) and
+    /// a real branch that leaves the bark: the reach rule drops only the
+    /// spur.
+    #[test]
+    fn a_spur_to_the_bark_of_a_thick_stem_goes_and_a_branch_stays() {
+        let mut nodes = vec![
+            node([0.0, 0.0, 0.0], None),
+            node([0.0, 0.0, 1.0], Some(0)),
+            node([0.0, 0.0, 2.0], Some(1)),
+            node([0.3, 0.0, 1.02], Some(1)),  // the spur…
+            node([0.31, 0.0, 1.04], Some(3)), // …with one more bark piece
+            node([0.35, 0.0, 1.1], Some(1)),  // a branch
+            node([0.8, 0.0, 1.4], Some(5)),
+        ];
+        nodes[1].radius_m = 0.3;
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let mut rule = Pruning {
+            min_branch_m: 0.09,
+            stem_spreads: 0.0,
+            spur_spread_m: 0.12,
+            spur_reach_m: 0.045,
+        };
+        let tips = |rule: &Pruning| {
+            let kept = s.retain(&noise_branches(&s, rule));
+            let mut tips: Vec<Vec3> = kept
+                .ids()
+                .filter(|&id| kept.is_tip(id))
+                .map(|id| kept.position(id))
+                .collect();
+            tips.sort_by(|a, b| a.x.total_cmp(&b.x));
+            tips
+        };
+        assert_eq!(
+            tips(&rule),
+            vec![Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.8, 0.0, 1.4)]
+        );
+        rule.spur_spread_m = f32::INFINITY;
+        assert_eq!(tips(&rule).len(), 3, "the length rule alone keeps the spur");
     }
 }
