@@ -363,3 +363,30 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
     assert!(now > 0.97, "precision {now}");
     assert!(before < 0.96, "precision without the spur rule {before}");
 }
+
+/// An occluded terrestrial scan of a thick poplar trunk (the default scan of
+/// `silva eval --synthetic` seed 3): the main chain zigzags out to the bark,
+/// and the zigzag's own internodes claim most of the breast-height slice, so
+/// the fit on the points nearest the trunk has too few inliers. The trunk is
+/// then fitted on all points near its axis (the robust circle rejects the
+/// branches'), not estimated allometrically.
+#[test]
+fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
+    use silva::eval::run::trunk_radius_at;
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Poplar),
+        3,
+        silva::Anchor::at(OFFSET),
+    );
+    let cloud = simulate_tls(&truth, &TlsOptions::default(), 3);
+    let tree = reconstruct(&cloud, &dense()).unwrap();
+    let m = &tree.metrics;
+    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
+    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
+    assert!(
+        (m.dbh_m - true_dbh).abs() < 0.05,
+        "DBH {} against {true_dbh}",
+        m.dbh_m
+    );
+}

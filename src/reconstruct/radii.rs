@@ -388,17 +388,29 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
         axis: (axis_point, axis_dir),
         search_radius_m: params.search_radius_m,
     };
-    let mut flat = slice.points(points, Claim::NearestIsTrunk);
-    let mut claim_note = "";
+    // A sparse, occluded scan of a thick trunk leaves spurious branches on
+    // its bark, and a main chain that zigzags out to the bark, whose
+    // internodes claim the trunk's points; then the points near the trunk
+    // axis are fitted instead, and the robust fit rejects those of real
+    // branches.
+    slice_fit(&slice, points, Claim::NearestIsTrunk, params)
+        .or_else(|first| {
+            slice_fit(&slice, points, Claim::NearTrunk, params)
+                .map_err(|second| format!("{first}; with all points near the trunk axis, {second}"))
+        })
+        .unwrap_or_else(estimate)
+}
+
+/// The circle fit of one claim of the breast-height slice, or why it fails.
+fn slice_fit(
+    slice: &TrunkSlice,
+    points: &[Vec3],
+    claim: Claim,
+    params: &Params,
+) -> Result<TrunkFit, String> {
+    let flat = slice.points(points, claim);
     if flat.len() < params.min_trunk_points {
-        // A sparse, occluded scan of a thick trunk leaves spurious branches
-        // on its bark that claim its points; the robust fit rejects the
-        // points of real branches instead.
-        flat = slice.points(points, Claim::NearTrunk);
-        claim_note = " (points near the trunk axis: other internodes claimed most)";
-    }
-    if flat.len() < params.min_trunk_points {
-        return estimate(format!(
+        return Err(format!(
             "only {} trunk points at {:.1}–{:.1} m (at least {} needed)",
             flat.len(),
             params.slice_m.0,
@@ -407,39 +419,37 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
         ));
     }
     let Some((circle, inliers)) = robust_circle(&flat, params.search_radius_m) else {
-        return estimate(format!("no circle fits the {} trunk points", flat.len()));
+        return Err(format!("no circle fits the {} trunk points", flat.len()));
     };
     let sectors = sectors_seen(&inliers, circle.centre);
     let rms = circle_rms(&inliers, circle);
-    let fitted = TrunkFit {
-        radius_m: circle.radius,
-        method: DbhMethod::Fitted,
-        centre: Some(circle.centre.extend(axis_point.z)),
-        points: inliers.len(),
-        sectors,
-        rms_m: rms,
-        reason: String::new(),
-    };
     if inliers.len() < params.min_trunk_points || sectors < params.min_sectors {
-        return TrunkFit {
-            reason: format!(
-                "the trunk fit has {} inliers over {} of 12 sectors (at least {} over {} needed)",
-                inliers.len(),
-                sectors,
-                params.min_trunk_points,
-                params.min_sectors
-            ),
-            ..estimate(String::new())
-        };
+        return Err(format!(
+            "the trunk fit has {} inliers over {} of 12 sectors (at least {} over {} needed)",
+            inliers.len(),
+            sectors,
+            params.min_trunk_points,
+            params.min_sectors
+        ));
     }
     if rms > 0.25 * circle.radius {
-        return estimate(format!(
+        return Err(format!(
             "the trunk points scatter {:.1} cm around a {:.1} cm circle",
             rms * 100.0,
             circle.radius * 100.0
         ));
     }
-    TrunkFit {
+    let claim_note = match claim {
+        Claim::NearestIsTrunk => "",
+        Claim::NearTrunk => " (points near the trunk axis: other internodes claimed most)",
+    };
+    Ok(TrunkFit {
+        radius_m: circle.radius,
+        method: DbhMethod::Fitted,
+        centre: Some(circle.centre.extend(slice.axis.0.z)),
+        points: inliers.len(),
+        sectors,
+        rms_m: rms,
         reason: format!(
             "circle fitted to {} of {} trunk points over {} of 12 sectors, RMS {:.1} mm{claim_note}",
             inliers.len(),
@@ -447,8 +457,7 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
             sectors,
             rms * 1000.0
         ),
-        ..fitted
-    }
+    })
 }
 
 /// Which slice points count as trunk points.
