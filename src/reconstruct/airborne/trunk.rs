@@ -23,7 +23,10 @@
 //! crown's projection rather than the centre of its bounding box (see
 //! [`footprint_centre`]). A fifth, when a terrain is known: a column of
 //! stem returns 0.3–2.5 m above the ground ([`stem_column`]) places the
-//! base in preference to both equations.
+//! base in preference to both equations. A sixth, for leaf-on scans that
+//! show no stem: under a columnar crown Eq. 4's g_b is the centre of the
+//! crown's lowest layer rather than of its footprint
+//! ([`lowest_layer_centre`]).
 
 use glam::{Vec2, Vec3};
 
@@ -88,7 +91,8 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         .iter()
         .fold((v_low, v_low), |(lo, hi), &p| (lo.min(p), hi.max(p)));
     let centre_xy = footprint_centre(tree);
-    let g_b = centre_xy.extend(ground_at(centre_xy));
+    let base_xy = lowest_layer_centre(tree, centre_xy);
+    let g_b = base_xy.extend(ground_at(base_xy));
     let v_c = tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32;
 
     // A lowest point without neighbours is an isolated trunk hit below the
@@ -264,6 +268,47 @@ fn footprint_centre(tree: &[Vec3]) -> Vec2 {
     sum / cells.len().max(1) as f32
 }
 
+/// Horizontal spread (RMS distance from the points' mean) under which a
+/// crown counts as columnar, in metres: the synthetic Lombardy poplars'
+/// crowns spread 1.0–1.6 m, the oaks', birches' and pines' 2.0–6.4 m.
+const COLUMNAR_SPREAD_M: f32 = 1.8;
+
+/// Share of the tree points, lowest first, that make up a crown's lowest
+/// layer in [`lowest_layer_centre`].
+const LOWEST_LAYER_SHARE: usize = 10;
+
+/// Where Eq. 4's trunk base g_b goes when no return marks the stem: the
+/// footprint centre `footprint_xy`, except under a columnar crown (spread
+/// under [`COLUMNAR_SPREAD_M`]), where it is the mean position of the
+/// lowest tenth of the returns. Not in the paper (§4.2 uses the footprint
+/// for every crown): a leaf-on crown hides the stem, and a columnar crown's
+/// short lowest limbs ring the trunk, so its lowest layer is centred on the
+/// trunk, whereas its footprint follows the upper crown's sway (0.6–0.9 m
+/// off on synthetic poplars whose lowest layer is 0.3–0.4 m off). A broad
+/// crown's lowest layer is one or two long limbs on one side, metres off.
+fn lowest_layer_centre(tree: &[Vec3], footprint_xy: Vec2) -> Vec2 {
+    let n = tree.len().max(1) as f32;
+    let mean = tree.iter().map(|p| p.truncate()).sum::<Vec2>() / n;
+    let spread = (tree
+        .iter()
+        .map(|p| p.truncate().distance_squared(mean))
+        .sum::<f32>()
+        / n)
+        .sqrt();
+    if spread >= COLUMNAR_SPREAD_M || tree.len() < LOWEST_LAYER_SHARE {
+        return footprint_xy;
+    }
+    let mut heights: Vec<f32> = tree.iter().map(|p| p.z).collect();
+    let k = tree.len() / LOWEST_LAYER_SHARE;
+    let (_, &mut top, _) = heights.select_nth_unstable_by(k, f32::total_cmp);
+    let layer: Vec<Vec2> = tree
+        .iter()
+        .filter(|p| p.z <= top)
+        .map(|p| p.truncate())
+        .collect();
+    layer.iter().copied().sum::<Vec2>() / layer.len().max(1) as f32
+}
+
 /// Whether the tree points less than `radius_m` above `v_low` all lie
 /// within half of `radius_m` of it horizontally: a trunk seen from above is
 /// a column of returns (or one return below the crown), whereas the lowest
@@ -401,6 +446,29 @@ mod tests {
         // Without a terrain the band has no ground level: not used.
         let terrain_free = add_trunk(&tree, None, &Params::default());
         assert_ne!(terrain_free.rule, TrunkRule::OnStemReturns);
+    }
+
+    #[test]
+    fn a_columnar_crown_stands_on_the_centre_of_its_lowest_layer() {
+        // A poplar-like crown 1.2 m across: a ring of short limbs around
+        // the origin 3–4 m up, and the upper crown swayed 0.8 m to +x.
+        let mut tree: Vec<Vec3> = (0..20)
+            .map(|k| {
+                let a = k as f32 * 0.9;
+                Vec3::new(0.6 * a.cos(), 0.6 * a.sin(), 3.0 + (k % 4) as f32 * 0.3)
+            })
+            .collect();
+        tree.extend((0..180).map(|k| {
+            let a = k as f32 * 0.7;
+            let z = 5.0 + k as f32 * 0.08;
+            Vec3::new(0.8 + 0.7 * a.cos(), 0.7 * a.sin(), z)
+        }));
+        let footprint = footprint_centre(&tree);
+        assert!(footprint.length() > 0.5, "{footprint}");
+        let trunk = add_trunk(&tree, None, &Params::default());
+        assert_eq!(trunk.rule, TrunkRule::FromCrownCentre);
+        let base = trunk.points[0].truncate();
+        assert!(base.length() < 0.2, "{base}");
     }
 
     #[test]
