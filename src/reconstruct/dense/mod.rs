@@ -24,7 +24,8 @@
 //! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
 //!    (shorter than a few bins by subtree length; on thick stems, spurs
 //!    from the axis out to a piece of the stem's own bark; or, when
-//!    enabled, bark patches that never leave their stem), thick stems
+//!    enabled, bark patches that never leave their stem), detours of a
+//!    thick stem's chain through a piece of its bark dropped, thick stems
 //!    smoothed, Douglas–Peucker along chains,
 //!    main extension first.
 //!
@@ -124,6 +125,22 @@ pub struct Params {
     pub spur_spread_bins: f32,
     /// See [`Params::spur_spread_bins`].
     pub spur_reach_bins: f32,
+    /// A short run of sections (at most [`Params::detour_max_nodes`])
+    /// between two thick stem rings (spread of at least
+    /// [`Params::spur_spread_bins`] bin widths) is the main chain detouring
+    /// through a piece of the stem's bark, and is dropped, when each section
+    /// is thinner than this share of the rings' spread (0: off)…
+    ///
+    /// Clean synthetic TLS scans (`silva eval --synthetic 8 --scan tls
+    /// --density 1000 --no-occlusion`): skeleton within 2 cm of the true
+    /// axis on poplar s3 70.8 → 84.7 %, s7 78.7 → 82.4 %, oak s1 79.5 →
+    /// 83.3 %; median precision 99.0 → 99.2 %, median recall 99.1 % (the
+    /// poplars lose 0.2–0.4 points).
+    pub detour_thin_share: f32,
+    /// …and lies at least this share of the rings' spread off their axis.
+    pub detour_off_axis_share: f32,
+    /// See [`Params::detour_thin_share`].
+    pub detour_max_nodes: usize,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
@@ -164,6 +181,9 @@ impl Default for Params {
             stem_stub_spreads: 0.0,
             spur_spread_bins: 4.0,
             spur_reach_bins: 1.5,
+            detour_thin_share: 0.5,
+            detour_off_axis_share: 0.5,
+            detour_max_nodes: 2,
             smoothing_rounds: 3,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
@@ -272,6 +292,16 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             stem_spreads: params.stem_stub_spreads,
             spur_spread_m: params.spur_spread_bins * bin_m,
             spur_reach_m: params.spur_reach_bins * bin_m,
+        },
+    );
+    let skeleton = skeleton.retain(&keep);
+    let keep = simplify::bark_detours(
+        &skeleton,
+        &simplify::Detours {
+            thick_spread_m: params.spur_spread_bins * bin_m,
+            thin_share: params.detour_thin_share,
+            off_axis_share: params.detour_off_axis_share,
+            max_nodes: params.detour_max_nodes,
         },
     );
     let mut skeleton = skeleton.retain(&keep);

@@ -176,6 +176,85 @@ fn inside_stem(
     })
 }
 
+/// What counts as a detour through the bark in [`bark_detours`].
+pub(super) struct Detours {
+    /// Nodes whose cross-section spread reaches this, in metres, are a thick
+    /// stem's rings (infinite: off).
+    pub(super) thick_spread_m: f32,
+    /// A run of nodes between two rings is a detour when each node's spread
+    /// is below this share of the rings' smaller spread…
+    pub(super) thin_share: f32,
+    /// …and each lies at least this share of that spread off the segment
+    /// joining the rings (the stem's axis there).
+    pub(super) off_axis_share: f32,
+    /// Longest run, in nodes.
+    pub(super) max_nodes: usize,
+}
+
+/// Marks the nodes (`false`) where the main chain of a thick stem detours
+/// through a piece of its own bark: a short run of thin sections, well off
+/// the axis, between two rings. A ragged distance front cut the piece off a
+/// ring, and its section took the ring's place in the chain (ring → bark →
+/// ring), so the chain zigzags out to the bark. `Skeleton::retain` drops the
+/// run and joins the rings again; branches that left the run attach to the
+/// lower ring. Like [`noise_branches`], it refines AdTree's skeleton
+/// simplification (lsystem-from-adtree-skeletons §2.1.1), here for nodes
+/// rather than branches: the piece is noise of the stem's sampling, and
+/// dropping it (rather than moving it, as [`smooth_chains`] does with
+/// jitter) leaves the rings' centres, which lie on the axis, untouched.
+pub(super) fn bark_detours(skeleton: &Skeleton, rule: &Detours) -> Vec<bool> {
+    let mut keep = vec![true; skeleton.len()];
+    for ring in skeleton.ids() {
+        if skeleton.radius(ring) < rule.thick_spread_m {
+            continue;
+        }
+        for &first in skeleton.children(ring) {
+            if let Some(run) = detour_from(skeleton, ring, first, rule) {
+                for id in run {
+                    keep[id.index()] = false;
+                }
+            }
+        }
+    }
+    keep
+}
+
+/// The run of thin nodes from `first` (a child of the ring `ring`) to the
+/// next ring along single-thin-child steps, when it is a detour through the
+/// bark (see [`bark_detours`]).
+fn detour_from(
+    skeleton: &Skeleton,
+    ring: NodeId,
+    first: NodeId,
+    rule: &Detours,
+) -> Option<Vec<NodeId>> {
+    let is_ring = |id: NodeId| skeleton.radius(id) >= rule.thick_spread_m;
+    let mut run = vec![first];
+    let next = loop {
+        let last = *run.last()?;
+        if is_ring(last) {
+            return None; // the ring's own chain, no detour
+        }
+        let kids = skeleton.children(last);
+        if let Some(&next) = kids.iter().find(|&&c| is_ring(c)) {
+            break next;
+        }
+        match kids {
+            [only] if run.len() < rule.max_nodes => run.push(*only),
+            _ => return None,
+        }
+    };
+    let spread = skeleton.radius(ring).min(skeleton.radius(next));
+    let (a, b) = (skeleton.position(ring), skeleton.position(next));
+    run.iter()
+        .all(|&id| {
+            skeleton.radius(id) < rule.thin_share * spread
+                && point_segment_distance(skeleton.position(id), a, b)
+                    >= rule.off_axis_share * spread
+        })
+        .then_some(run)
+}
+
 /// Smooths node positions along thick chains (each interior node whose
 /// cross-section spread is at least `min_spread_m` moves towards the mean of
 /// its parent and its single child, `rounds` times): on thick stems the
@@ -364,5 +443,51 @@ mod tests {
         );
         rule.spur_spread_m = f32::INFINITY;
         assert_eq!(tips(&rule).len(), 3, "the length rule alone keeps the spur");
+    }
+
+    /// A 0.3 m-radius stem whose chain detours through a bark piece (spread
+    /// 0.05 m, 0.3 m off the axis) between two rings, with a branch leaving
+    /// the piece: the piece goes, the rings join, the branch moves to the
+    /// lower ring; a thin branch leaving the stem stays.
+    #[test]
+    fn a_detour_through_the_bark_of_a_thick_stem_goes() {
+        let mut nodes = vec![
+            node([0.0, 0.0, 0.0], None),
+            node([0.0, 0.0, 1.0], Some(0)),  // ring
+            node([0.3, 0.0, 1.1], Some(1)),  // bark piece
+            node([0.0, 0.0, 1.2], Some(2)),  // ring
+            node([0.0, 0.0, 2.0], Some(3)),  // ring
+            node([0.9, 0.0, 1.5], Some(2)),  // branch off the piece
+            node([0.35, 0.0, 1.3], Some(3)), // a branch leaving the stem…
+            node([0.8, 0.0, 1.6], Some(6)),  // …that stays thin
+        ];
+        for (i, spread) in [(1, 0.3), (2, 0.05), (3, 0.3), (4, 0.3), (5, 0.02)] {
+            nodes[i].radius_m = spread;
+        }
+        nodes[6].radius_m = 0.04;
+        nodes[7].radius_m = 0.03;
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let rule = Detours {
+            thick_spread_m: 0.12,
+            thin_share: 0.5,
+            off_axis_share: 0.5,
+            max_nodes: 2,
+        };
+        let kept = s.retain(&bark_detours(&s, &rule));
+        assert_eq!(kept.len(), 7);
+        let at = |p: [f32; 3]| {
+            kept.ids()
+                .find(|&id| kept.position(id) == Vec3::from(p))
+                .unwrap()
+        };
+        let ring = Some(at([0.0, 0.0, 1.0]));
+        assert_eq!(kept.parent(at([0.0, 0.0, 1.2])), ring);
+        assert_eq!(kept.parent(at([0.9, 0.0, 1.5])), ring);
+        assert_eq!(kept.parent(at([0.35, 0.0, 1.3])), Some(at([0.0, 0.0, 1.2])));
+        let off = Detours {
+            thick_spread_m: f32::INFINITY,
+            ..rule
+        };
+        assert_eq!(s.retain(&bark_detours(&s, &off)).len(), 8);
     }
 }
