@@ -75,7 +75,7 @@ const APEX_RETURNS: usize = 10;
 /// number of returns above d, grows as c·d². The returns' depths are then a
 /// Poisson process with mean measure c·d², whose j-th highest return lies
 /// Γ(j + ½) / (Γ(j)·√c) below the apex on average. With k =
-/// [`APEX_RETURNS`], the depth Δ of the (k + 1)-th highest return below the
+/// `APEX_RETURNS` (10), the depth Δ of the (k + 1)-th highest return below the
 /// highest has mean (Γ(k + 3/2)/Γ(k + 1) − Γ(3/2)) / √c, so the expected
 /// gap Γ(3/2)/√c is Δ / (∏ⱼ₌₁..ₖ (1 + 1/(2j)) − 1) = 0.37·Δ: unknown c
 /// cancels, the gap grows as the scan gets sparser (Δ ∝ 1/√density) and
@@ -109,7 +109,9 @@ pub struct OrderStats {
 /// Metrics of one reconstructed tree.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TreeMetrics {
-    /// Tree height (highest point above the trunk base), metres.
+    /// Tree height (highest point above the trunk base), metres. Airborne
+    /// reconstructions add the expected gap between the highest return and
+    /// the apex ([`apex_gap_m`]), and say so in their notes.
     pub height_m: f32,
     /// Diameter at breast height (1.3 m), metres.
     pub dbh_m: f32,
@@ -124,7 +126,9 @@ pub struct TreeMetrics {
     pub crown_area_m2: f32,
     /// Summed length of all internodes, metres.
     pub total_branch_length_m: f32,
-    /// Wood volume as the sum of truncated cones, m³.
+    /// Wood volume as the sum of the internodes' truncated cones, a
+    /// lateral's first internode a cylinder of its own radius
+    /// ([`wood_volume_m3`]), m³.
     pub wood_volume_m3: f32,
     /// Skeleton nodes.
     pub nodes: u32,

@@ -13,7 +13,7 @@
 //!   Radii then taper linearly along each chain and never grow towards the
 //!   tips.
 //! - Dense scans: where enough points surround an internode its radius is
-//!   measured ([`section_radius`]: spread less the scanner noise, or a
+//!   measured (`section_radius`: spread less the scanner noise, or a
 //!   circle fit on one-sided thick sections), smoothed along its branch and
 //!   fitted to the rule that radii never grow towards the tips.
 

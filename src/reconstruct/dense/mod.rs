@@ -8,12 +8,12 @@
 //!    in the graph) and, for huge clouds, voxel thinning to at most
 //!    [`Params::max_points`], which bounds the graph's memory (about `2·k`
 //!    edges per point);
-//! 2. [`graph`]: a k-nearest-neighbour graph (in place of AdTree's 3D
+//! 2. `graph`: a k-nearest-neighbour graph (in place of AdTree's 3D
 //!    Delaunay graph), made connected by bridging components at their
 //!    closest pairs, and Dijkstra's shortest-path tree from the trunk base
 //!    (every point of the lowest slice is a source, so the distance fronts
 //!    start level instead of spreading from one bark point);
-//! 3. [`skeletonize`]: cross-sections of equal geodesic distance collapse to
+//! 3. `skeletonize`: cross-sections of equal geodesic distance collapse to
 //!    skeleton nodes at branch centres (centroids; on thick one-sided
 //!    sections, the centre of a fitted circle), with the arcs of one stem
 //!    section that ragged distance fronts split joined again, and the
@@ -21,7 +21,7 @@
 //!    neighbouring bins ([`Params::ring_window_bins`]); optionally, the
 //!    points that lie well outside the circle fitted to the ring (a twig
 //!    running along the bark) are kept apart ([`Params::ring_outlier_m`]);
-//! 4. [`simplify`]: near-duplicate children merged, noisy branches dropped
+//! 4. `simplify`: near-duplicate children merged, noisy branches dropped
 //!    (shorter than a few bins by subtree length; on thick stems, spurs
 //!    from the axis out to a piece of the stem's own bark; or, when
 //!    enabled, bark patches that never leave their stem), detours of a
