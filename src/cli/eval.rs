@@ -267,6 +267,10 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| r.truth.as_ref().map(|t| format!("{:+.3}", t.dbh_error_m)),
         },
         Column {
+            header: "vol_ratio",
+            cell: |r| r.truth.as_ref().map(|t| format!("{:.2}", t.volume_ratio)),
+        },
+        Column {
             header: "base_off",
             cell: |r| {
                 r.truth
