@@ -332,14 +332,9 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
     assert!(m["metrics"]["height_m"].as_f64().unwrap() > 5.0);
 }
 
-/// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
-/// `silva eval --synthetic` seed 3): its thick trunk's ring breaks into
-/// pieces of bark at ragged distance fronts, and without the spur rule each
-/// piece hangs off the axis as a lateral as long as the trunk's radius,
-/// away from every true branch.
-#[test]
-fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
-    use silva::eval::compare::compare;
+/// The synthetic Lombardy poplar of `silva eval --synthetic` seed 3 and a
+/// clean, dense terrestrial scan of it (1,000 points/m², no occlusion).
+fn clean_poplar_scan() -> (Skeleton, PointCloud) {
     use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
         &TreeParams::preset(Species::Poplar),
@@ -352,6 +347,18 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
         ..TlsOptions::default()
     };
     let cloud = simulate_tls(&truth, &clean, 3);
+    (truth, cloud)
+}
+
+/// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
+/// `silva eval --synthetic` seed 3): its thick trunk's ring breaks into
+/// pieces of bark at ragged distance fronts, and without the spur rule each
+/// piece hangs off the axis as a lateral as long as the trunk's radius,
+/// away from every true branch.
+#[test]
+fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
+    use silva::eval::compare::compare;
+    let (truth, cloud) = clean_poplar_scan();
     let precision = |opts: &Options| {
         let tree = reconstruct(&cloud, opts).unwrap();
         compare(&truth, &tree.skeleton, 0.1, 0.0).precision
@@ -391,5 +398,35 @@ fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
         (m.dbh_m - true_dbh).abs() < 0.05,
         "DBH {} against {true_dbh}",
         m.dbh_m
+    );
+}
+
+/// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
+/// `silva eval --synthetic` seed 3), whose steep branches leave the trunk's
+/// axis and run inside its wood for up to a metre before they come out of
+/// the bark. The cross-sections start each branch where it comes out and
+/// join it across the wood to the trunk; extended back to the trunk's axis
+/// along its own direction, the branch covers the true branch inside the
+/// wood as well.
+#[test]
+fn a_poplars_branches_start_on_the_trunks_axis() {
+    use silva::eval::compare::compare;
+    let (truth, cloud) = clean_poplar_scan();
+    let recall_precision = |opts: &Options| {
+        let tree = reconstruct(&cloud, opts).unwrap();
+        let c = compare(&truth, &tree.skeleton, 0.1, 0.0);
+        (c.recall, c.precision)
+    };
+    let (recall, precision) = recall_precision(&dense());
+    let mut at_the_bark = dense();
+    at_the_bark.dense.lateral_base_spread_bins = f32::INFINITY;
+    let (recall_before, precision_before) = recall_precision(&at_the_bark);
+    assert!(
+        recall > recall_before + 0.01,
+        "recall {recall} against {recall_before} with laterals starting at the bark"
+    );
+    assert!(
+        precision >= precision_before,
+        "precision {precision} against {precision_before}"
     );
 }

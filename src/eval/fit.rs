@@ -2,7 +2,8 @@
 //! (issue 3, "Dense, fit"): the share of points within 2 cm and 5 cm of the
 //! reconstructed branch surfaces, the mean point-to-surface distance, and
 //! the share of the surface area with a point within 5 cm, i.e. the surface
-//! the data supports.
+//! the data supports (the model's surface is the boundary of the union of
+//! its cones: a piece of one cone inside another is not surface).
 //!
 //! Each internode is a truncated cone from the parent's radius to the
 //! child's ([`crate::reconstruct::metrics::wood_volume_m3`] uses the same
@@ -98,6 +99,23 @@ impl Cone {
         (radial - r).abs()
     }
 
+    /// True when `p` lies inside the cone, more than 1 mm within its
+    /// lateral surface and between its end discs.
+    fn contains(&self, p: Vec3) -> bool {
+        let axis = self.b - self.a;
+        let len = axis.length();
+        if len <= f32::EPSILON {
+            return false;
+        }
+        let u = axis / len;
+        let s = (p - self.a).dot(u);
+        if !(0.0..=len).contains(&s) {
+            return false;
+        }
+        let r = self.ra + (self.rb - self.ra) * s / len;
+        ((p - self.a) - u * s).length() < r - 0.001
+    }
+
     fn lateral_area(&self) -> f32 {
         let slant = ((self.ra - self.rb).powi(2) + self.a.distance_squared(self.b)).sqrt();
         std::f32::consts::PI * (self.ra + self.rb) * slant
@@ -140,16 +158,7 @@ pub fn surface_fit(skeleton: &Skeleton, cloud: &PointCloud) -> SurfaceFit {
 
 /// Shares within 2 cm and 5 cm and the mean distance of the points.
 fn point_distances(cones: &[Cone], points: &[Vec3]) -> (f32, f32, f32) {
-    let mut samples = Vec::new();
-    let mut owner = Vec::new();
-    for (k, c) in cones.iter().enumerate() {
-        let steps = (c.a.distance(c.b) / AXIS_STEP_M).ceil().max(1.0) as usize;
-        for i in 0..=steps {
-            samples.push(c.a.lerp(c.b, i as f32 / steps as f32));
-            owner.push(k as u32);
-        }
-    }
-    let index = PointIndex::new(&samples);
+    let (index, owner) = axis_index(cones);
     let max_r = cones.iter().map(|c| c.ra.max(c.rb)).fold(0.0, f32::max);
     // Any cone whose surface is within 5 cm of a point has an axis sample
     // within max radius + half a step + 5 cm of it.
@@ -185,14 +194,56 @@ fn point_distances(cones: &[Cone], points: &[Vec3]) -> (f32, f32, f32) {
     )
 }
 
+/// Samples along every cone's axis, every [`AXIS_STEP_M`] or closer, in an
+/// index, and the cone each belongs to.
+fn axis_index(cones: &[Cone]) -> (PointIndex, Vec<u32>) {
+    let mut samples = Vec::new();
+    let mut owner = Vec::new();
+    for (k, c) in cones.iter().enumerate() {
+        let steps = (c.a.distance(c.b) / AXIS_STEP_M).ceil().max(1.0) as usize;
+        for i in 0..=steps {
+            samples.push(c.a.lerp(c.b, i as f32 / steps as f32));
+            owner.push(k as u32);
+        }
+    }
+    (PointIndex::new(&samples), owner)
+}
+
+/// Per cone, the other cones that can overlap it (an axis sample within
+/// both cones' largest radii and a step of its axis).
+fn overlapping_cones(cones: &[Cone]) -> Vec<Vec<u32>> {
+    let (index, owner) = axis_index(cones);
+    let max_r = cones.iter().map(|c| c.ra.max(c.rb)).fold(0.0, f32::max);
+    cones
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let reach = c.ra.max(c.rb) + max_r + AXIS_STEP_M;
+            let steps = (c.a.distance(c.b) / AXIS_STEP_M).ceil().max(1.0) as usize;
+            let mut near: Vec<u32> = (0..=steps)
+                .flat_map(|i| index.within(c.a.lerp(c.b, i as f32 / steps as f32), reach))
+                .map(|n| owner[n.index])
+                .filter(|&j| j as usize != k)
+                .collect();
+            near.sort_unstable();
+            near.dedup();
+            near
+        })
+        .collect()
+}
+
 /// Area-weighted share of surface samples with a cloud point within 5 cm.
+/// Samples inside another cone (a lateral's first internode inside the
+/// stem it starts on, the overlap at a bend) are not on the model's
+/// surface, the boundary of the union of its cones, and do not count.
 fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
     if area_m2 <= 0.0 {
         return 0.0;
     }
     let step = surface_step_m(area_m2);
     let mut tally = SupportTally::new(points);
-    for c in cones {
+    let overlapping = overlapping_cones(cones);
+    for (c, others) in cones.iter().zip(&overlapping) {
         let axis = c.b - c.a;
         let len = axis.length();
         if len <= f32::EPSILON {
@@ -211,7 +262,10 @@ fn supported_share(cones: &[Cone], points: &[Vec3], area_m2: f32) -> f32 {
             let weight = f64::from(c.lateral_area()) / (along * around) as f64;
             for j in 0..around {
                 let phi = j as f32 / around as f32 * std::f32::consts::TAU;
-                tally.add(centre + (e1 * phi.cos() + e2 * phi.sin()) * r, weight);
+                let sample = centre + (e1 * phi.cos() + e2 * phi.sin()) * r;
+                if !others.iter().any(|&o| cones[o as usize].contains(sample)) {
+                    tally.add(sample, weight);
+                }
             }
         }
     }
@@ -287,6 +341,39 @@ mod tests {
         assert!((fit.mean_distance_m - 0.8 / fit.points as f32).abs() < 1e-4);
         assert!(fit.supported_share > 0.99);
         assert!((fit.surface_area_m2 - std::f32::consts::TAU * 0.2 * 2.0).abs() < 1e-3);
+    }
+
+    /// A 5 cm branch that starts on the axis of a 30 cm stem: the part of
+    /// its cylinder inside the stem is not surface, so the bark points of
+    /// both cover all of the model's surface.
+    #[test]
+    fn a_cylinder_inside_another_is_not_unsupported_surface() {
+        let mut s = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
+        s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
+        let base = s.add_child(NodeId::ROOT, Vec3::ZERO, 0.05);
+        s.add_child(base, Vec3::new(1.5, 0.0, 1.0), 0.05);
+        let mut pts = Vec::new();
+        for i in 0..100 {
+            for j in 0..96 {
+                let a = j as f32 / 96.0 * std::f32::consts::TAU;
+                pts.push(Vec3::new(0.3 * a.cos(), 0.3 * a.sin(), i as f32 * 0.01));
+            }
+        }
+        let (a, b) = (Vec3::ZERO, Vec3::new(1.5, 0.0, 1.0));
+        let (e1, e2) = (b - a).normalize().any_orthonormal_pair();
+        for i in 0..180 {
+            let c = a.lerp(b, i as f32 / 180.0);
+            for j in 0..24 {
+                let phi = j as f32 / 24.0 * std::f32::consts::TAU;
+                pts.push(c + (e1 * phi.cos() + e2 * phi.sin()) * 0.05);
+            }
+        }
+        let pts: Vec<Vec3> = pts
+            .into_iter()
+            .filter(|p| p.truncate().length() >= 0.29)
+            .collect();
+        let fit = surface_fit(&s, &PointCloud::from_points(DVec3::ZERO, pts));
+        assert!(fit.supported_share > 0.99, "{}", fit.supported_share);
     }
 
     #[test]

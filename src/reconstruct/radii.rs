@@ -185,8 +185,11 @@ fn measured_radii(
         let (a, b) = (skeleton.position(p), skeleton.position(c));
         let steps = (a.distance(b) / 0.05).ceil().max(1.0) as usize;
         for i in 0..=steps {
-            samples.push(a.lerp(b, i as f32 / steps as f32));
-            owner.push(c);
+            let q = a.lerp(b, i as f32 / steps as f32);
+            if !inside_parent_stem(skeleton, p, c, q) {
+                samples.push(q);
+                owner.push(c);
+            }
         }
     }
     let mut found: Vec<Vec<Vec2>> = vec![Vec::new(); skeleton.len()];
@@ -206,6 +209,27 @@ fn measured_radii(
             (section.len() >= min_points.max(1)).then(|| section_radius(section, noise_m))
         })
         .collect()
+}
+
+/// True when `q`, on the first internode of the lateral `lateral` of the
+/// fork `fork`, lies inside the stem it leaves (within the fork's radius,
+/// the pipe model's at this stage, of the stem's internodes at the fork).
+/// A lateral starts on its stem's axis (see `dense::lateral_base`), but
+/// the bark around that part of it is the stem's: measured there, the
+/// lateral would take the stem's girth.
+fn inside_parent_stem(skeleton: &Skeleton, fork: NodeId, lateral: NodeId, q: Vec3) -> bool {
+    let kids = skeleton.children(fork);
+    if kids.first() == Some(&lateral) {
+        return false;
+    }
+    let at = skeleton.position(fork);
+    let r = skeleton.radius(fork);
+    let stem = skeleton
+        .parent(fork)
+        .into_iter()
+        .chain(kids.first().copied());
+    stem.map(|n| point_segment_distance(q, at, skeleton.position(n)))
+        .any(|d| d < r)
 }
 
 /// The radius of one section from its points' offsets from the axis, in the
@@ -855,6 +879,48 @@ mod tests {
         let radii: Vec<f32> = tree.ids().map(|id| tree.radius(id)).collect();
         assert!(radii[8] > 0.04, "{radii:?}");
         assert!((radii[2] - 0.05).abs() < 1e-6, "{radii:?}");
+    }
+
+    /// A 2 cm branch that starts on the axis of a 20 cm stem and runs
+    /// steeply inside its wood for half a metre before it leaves the bark
+    /// (as `dense::lateral_base` starts laterals): the stem's bark around
+    /// that part is not measured as the branch's.
+    #[test]
+    fn a_lateral_inside_its_stem_does_not_take_the_stems_bark() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.2);
+        let mut node = NodeId::ROOT;
+        for i in 1..=4 {
+            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.2);
+        }
+        let base = NodeId::from_index(2);
+        let first = tree.add_child(base, Vec3::new(0.3, 0.0, 1.8), 0.02);
+        tree.add_child(first, Vec3::new(0.6, 0.0, 2.6), 0.02);
+        let mut points = Vec::new();
+        let ring = |centre: Vec3, u: Vec3, r: f32, points: &mut Vec<Vec3>| {
+            let (e1, e2) = u.any_orthonormal_pair();
+            for k in 0..32 {
+                let phi = k as f32 / 32.0 * std::f32::consts::TAU;
+                points.push(centre + (e1 * phi.cos() + e2 * phi.sin()) * r);
+            }
+        };
+        for i in 0..100 {
+            ring(
+                Vec3::new(0.0, 0.0, 0.02 * i as f32),
+                Vec3::Z,
+                0.2,
+                &mut points,
+            );
+        }
+        let (a, b) = (Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.6, 0.0, 2.6));
+        for i in 0..100 {
+            let c = a.lerp(b, i as f32 / 100.0);
+            if c.truncate().length() > 0.22 {
+                ring(c, (b - a).normalize(), 0.02, &mut points);
+            }
+        }
+        let measured = measured_radii(&tree, &points, 3, 0.0);
+        let r = measured[first.index()].unwrap();
+        assert!(r < 0.03, "the branch measured {r} m");
     }
 
     /// A 1 cm twig measured right on a 30 cm trunk keeps its radius: it is

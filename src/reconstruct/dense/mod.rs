@@ -27,7 +27,10 @@
 //!    enabled, bark patches that never leave their stem), detours of a
 //!    thick stem's chain through a piece of its bark dropped, thick stems
 //!    smoothed, Douglas–Peucker along chains,
-//!    main extension first.
+//!    main extension first;
+//! 5. `lateral_base`: laterals of thick stems extended back along their
+//!    initial direction to the stem's axis, where the truth (and a QSM)
+//!    starts them, rather than joined across the wood from the bark.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines.
@@ -41,6 +44,7 @@ use crate::skeleton::{Anchor, Skeleton};
 use crate::spatial::PointIndex;
 
 mod graph;
+mod lateral_base;
 mod simplify;
 mod skeletonize;
 
@@ -141,6 +145,22 @@ pub struct Params {
     pub detour_off_axis_share: f32,
     /// See [`Params::detour_thin_share`].
     pub detour_max_nodes: usize,
+    /// Laterals of forks whose cross-section spread reaches this many bin
+    /// widths (a thick stem) start on the stem's axis: each is extended back
+    /// along its initial direction to the axis (see `lateral_base`;
+    /// infinite: off).
+    pub lateral_base_spread_bins: f32,
+    /// A lateral's initial direction is fitted over this many stem spreads
+    /// of its chain…
+    pub lateral_direction_spreads: f32,
+    /// …but over at least this many bin widths.
+    pub lateral_direction_bins: f32,
+    /// A lateral's base moves down the stem at most this many stem spreads
+    /// below the fork it left (0: only along the fork's own internode).
+    pub lateral_max_drop_spreads: f32,
+    /// A lateral's base moves only when the line back along its initial
+    /// direction passes the stem's axis within this many stem spreads.
+    pub lateral_miss_spreads: f32,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
@@ -184,6 +204,11 @@ impl Default for Params {
             detour_thin_share: 0.5,
             detour_off_axis_share: 0.5,
             detour_max_nodes: 2,
+            lateral_base_spread_bins: 4.0,
+            lateral_direction_spreads: 1.0,
+            lateral_direction_bins: 4.0,
+            lateral_max_drop_spreads: 4.0,
+            lateral_miss_spreads: 1.0,
             smoothing_rounds: 3,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
@@ -310,6 +335,18 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         &skeleton,
         params.simplify_bins * bin_m,
         params.simplify_spreads,
+    );
+    skeleton.order_main_extension_first();
+    let mut skeleton = lateral_base::to_parent_axis(
+        &skeleton,
+        &lateral_base::BaseRule {
+            thick_spread_m: params.lateral_base_spread_bins * bin_m,
+            direction_spreads: params.lateral_direction_spreads,
+            min_direction_m: params.lateral_direction_bins * bin_m,
+            max_drop_spreads: params.lateral_max_drop_spreads,
+            max_miss_spreads: params.lateral_miss_spreads,
+            snap_m: bin_m,
+        },
     );
     skeleton.order_main_extension_first();
     let skeleton = skeleton.canonical();
