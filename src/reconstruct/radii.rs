@@ -8,8 +8,11 @@
 //!   [`DbhMethod::Estimated`] says so (airborne scans rarely see the trunk).
 //! - Branches: the pipe model of airborne-lidar-tree-modeling §5.5, Eq. 6:
 //!   the squared radius of a segment is the sum of its children's squared
-//!   radii, so with equal tips a node's radius is `r_tip·√(tips above it)`;
-//!   `r_tip` is chosen so that the trunk at breast height matches the DBH.
+//!   radii, so with equal tips a node's radius is `r_tip·√(tips above it)`.
+//!   On the stem `r_tip` is chosen so that the trunk at breast height
+//!   matches the DBH; on the branches it is fitted to the tree's own
+//!   measured sections where there are enough (no thicker than the stem's:
+//!   a stem keeps the pipes of its shed branches, Shinozaki et al. 1964).
 //!   Radii then taper linearly along each chain and never grow towards the
 //!   tips.
 //! - Dense scans: where enough points surround an internode its radius is
@@ -146,14 +149,26 @@ pub fn assign_radii(
     };
     let trunk = fit_trunk(skeleton, &tree.points, crown, params);
     let reference = breast_height_node(skeleton, params.breast_height_m);
-    pipe_model(skeleton, reference, trunk.radius_m, params.min_radius_m);
-    if params.measured_radii {
-        let noise = if trunk.method == DbhMethod::Fitted {
-            trunk.rms_m
-        } else {
-            0.0
-        };
-        let measured = measured_radii(skeleton, &tree.points, params.min_section_points, noise);
+    let tips = tips_above(skeleton);
+    let noise = if trunk.method == DbhMethod::Fitted {
+        trunk.rms_m
+    } else {
+        0.0
+    };
+    let measured = params
+        .measured_radii
+        .then(|| measured_radii(skeleton, &tree.points, params.min_section_points, noise));
+    let stem = PipeLaw::through(tips[reference.index()], trunk.radius_m, params.min_radius_m);
+    let laws = PipeLaws {
+        stem,
+        // Shed pipes only thicken the stem: the branches are no thicker.
+        branches: measured
+            .as_deref()
+            .and_then(|m| PipeLaw::fit(&tips, m, params.min_radius_m))
+            .map(|fit| fit.min(stem)),
+    };
+    pipe_model(skeleton, &tips, laws, trunk.radius_m, params.min_radius_m);
+    if let Some(measured) = measured {
         blend_measured(
             skeleton,
             &measured,
@@ -726,9 +741,8 @@ fn sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
     seen.iter().filter(|&&s| s).count() as u32
 }
 
-/// Pipe-model radii (Eq. 6) scaled so that `reference` gets `trunk_radius_m`,
-/// tapered along chains and made non-increasing towards the tips.
-fn pipe_model(skeleton: &mut Skeleton, reference: NodeId, trunk_radius_m: f32, min_radius_m: f32) {
+/// Number of tips in each node's subtree (a tip counts itself).
+fn tips_above(skeleton: &Skeleton) -> Vec<u32> {
     let mut tips = vec![0u32; skeleton.len()];
     for id in skeleton.ids().rev() {
         if skeleton.is_tip(id) {
@@ -738,9 +752,115 @@ fn pipe_model(skeleton: &mut Skeleton, reference: NodeId, trunk_radius_m: f32, m
             tips[p.index()] += tips[id.index()];
         }
     }
-    let tip_radius =
-        (trunk_radius_m / (tips[reference.index()].max(1) as f32).sqrt()).max(min_radius_m);
-    let pipe = |id: NodeId| (tip_radius * (tips[id.index()] as f32).sqrt()).max(min_radius_m);
+    tips
+}
+
+/// Eq. 6 of airborne-lidar-tree-modeling §5.5 with equal tips: a segment
+/// carrying `n` tips has the radius `tip_radius · √n` (Shinozaki et al.
+/// 1964's pipe model: the cross-section is proportional to the tips it
+/// feeds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PipeLaw {
+    /// Radius of a segment carrying one tip, in metres.
+    tip_radius_m: f32,
+}
+
+/// Fewest measured sections per tip-count class for a [`PipeLaw::fit`].
+const MIN_SECTIONS_PER_CLASS: usize = 5;
+/// Fewest tip-count classes for a [`PipeLaw::fit`].
+const MIN_CLASSES: usize = 3;
+
+impl PipeLaw {
+    /// The law through a segment carrying `tips` tips with `radius_m` (the
+    /// tip radius no smaller than `min_radius_m`).
+    fn through(tips: u32, radius_m: f32, min_radius_m: f32) -> Self {
+        Self {
+            tip_radius_m: (radius_m / (tips.max(1) as f32).sqrt()).max(min_radius_m),
+        }
+    }
+
+    /// The law fitted to the tree's own measured sections: they are grouped
+    /// by the number of tips they carry (powers of two), each group gives
+    /// the tip radius its median section implies, and the median of those
+    /// is the law's. Medians keep both ends' measurement biases (twigs read
+    /// thick through the scanner noise, one-sided thick sections thin) and
+    /// the many twigs from outweighing the rest. `None` when fewer than
+    /// [`MIN_CLASSES`] groups hold [`MIN_SECTIONS_PER_CLASS`] sections.
+    fn fit(tips: &[u32], measured: &[Option<f32>], min_radius_m: f32) -> Option<Self> {
+        let mut classes: Vec<Vec<f32>> = Vec::new();
+        for (&t, m) in tips.iter().zip(measured) {
+            let Some(r) = *m else { continue };
+            let n = t.max(1) as f32;
+            let class = n.log2() as usize;
+            if classes.len() <= class {
+                classes.resize(class + 1, Vec::new());
+            }
+            classes[class].push(r.max(min_radius_m) / n.sqrt());
+        }
+        let mut implied: Vec<f32> = classes
+            .iter_mut()
+            .filter(|c| c.len() >= MIN_SECTIONS_PER_CLASS)
+            .map(|c| median(c))
+            .collect();
+        (implied.len() >= MIN_CLASSES).then(|| Self {
+            tip_radius_m: median(&mut implied).max(min_radius_m),
+        })
+    }
+
+    /// The thinner of two laws.
+    fn min(self, other: Self) -> Self {
+        Self {
+            tip_radius_m: self.tip_radius_m.min(other.tip_radius_m),
+        }
+    }
+
+    /// Radius of a segment carrying `tips` tips, in metres.
+    fn radius_m(&self, tips: u32) -> f32 {
+        self.tip_radius_m * (tips.max(1) as f32).sqrt()
+    }
+}
+
+/// The median of `values` (the upper one of an even count; not empty).
+fn median(values: &mut [f32]) -> f32 {
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
+/// The pipe laws of the stem and of its branches.
+///
+/// The stem (the root's chain of main extensions) follows Eq. 6 through its
+/// fitted DBH. A stem is thicker than the tips it feeds: it keeps the pipes
+/// of the branches it shed (Shinozaki et al. 1964, "disused pipes", which
+/// make the stem's cross-section grow below the crown while the pipe model
+/// holds within it), so the DBH overstates the branches' law, the more so
+/// the more branches the tree has shed, and a reconstruction's tip count is
+/// not the tree's either. The branches therefore follow the law fitted to
+/// their own measured sections where there are enough of them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PipeLaws {
+    /// The stem's law, through the DBH.
+    stem: PipeLaw,
+    /// The branches' law fitted to the measured sections; `None`: the stem's.
+    branches: Option<PipeLaw>,
+}
+
+/// Pipe-model radii ([`PipeLaws`]), the root at least `trunk_radius_m`,
+/// tapered along chains and made non-increasing towards the tips.
+fn pipe_model(
+    skeleton: &mut Skeleton,
+    tips: &[u32],
+    laws: PipeLaws,
+    trunk_radius_m: f32,
+    min_radius_m: f32,
+) {
+    let orders = skeleton.branch_orders();
+    let pipe = |id: NodeId| {
+        let law = match laws.branches {
+            Some(branches) if orders[id.index()] > 0 => branches,
+            _ => laws.stem,
+        };
+        law.radius_m(tips[id.index()]).max(min_radius_m)
+    };
     skeleton.set_radius(NodeId::ROOT, pipe(NodeId::ROOT).max(trunk_radius_m));
     for v in skeleton.ids() {
         if v != NodeId::ROOT && skeleton.children(v).len() == 1 {
@@ -987,6 +1107,72 @@ mod tests {
             .collect();
         let r = section_radius(&section, 0.003);
         assert!((r - 0.004).abs() < 1e-4, "{r}");
+    }
+
+    /// Sections measured along a pipe law of 3 mm tips (√tips), each class
+    /// of tip counts with a few sections inflated fourfold (points of a
+    /// neighbour) and the thick ones read at 80 % (one-sided arcs): the
+    /// fitted tip radius is the 3 mm the medians show.
+    #[test]
+    fn the_branch_law_is_fitted_to_the_measured_sections() {
+        let mut tips = Vec::new();
+        let mut measured = Vec::new();
+        for class in 0..8u32 {
+            let n = 1u32 << class;
+            for k in 0..9 {
+                let r = 0.003 * (n as f32).sqrt();
+                let read = match k {
+                    0 | 1 => 4.0 * r,
+                    _ if class >= 6 => 0.8 * r,
+                    _ => r,
+                };
+                tips.push(n);
+                measured.push(Some(read));
+            }
+            tips.push(n);
+            measured.push(None);
+        }
+        let law = PipeLaw::fit(&tips, &measured, 0.002).expect("enough sections");
+        assert!((law.tip_radius_m - 0.003).abs() < 1e-4, "{law:?}");
+        assert!((law.radius_m(100) - 0.03).abs() < 1e-3, "{law:?}");
+        // Two classes are too few to fit a law.
+        let few = PipeLaw::fit(&tips[..20], &measured[..20], 0.002);
+        assert_eq!(few, None);
+    }
+
+    /// A stem of 30 cm at breast height carrying 400 tips, and branches
+    /// whose sections measure a 2 mm tip law: the branches follow their own
+    /// sections, not the 15 mm tips the DBH implies; the stem keeps its
+    /// DBH-anchored law.
+    #[test]
+    fn branches_follow_their_sections_and_the_stem_its_dbh() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        let mut stem = NodeId::ROOT;
+        for z in 1..=4 {
+            stem = tree.add_child(stem, Vec3::new(0.0, 0.0, z as f32), 0.3);
+        }
+        let mut forks = Vec::new();
+        for k in 0..400 {
+            let a = k as f32 * 0.1;
+            let base = NodeId::from_index(1 + k % 4);
+            forks.push(tree.add_child(base, Vec3::new(a.cos(), a.sin(), 1.0), 0.3));
+        }
+        let tips = tips_above(&tree);
+        let stem_law = PipeLaw::through(tips[1], 0.3, 0.002);
+        let branches = PipeLaw {
+            tip_radius_m: 0.002,
+        };
+        let laws = PipeLaws {
+            stem: stem_law,
+            branches: Some(branches.min(stem_law)),
+        };
+        pipe_model(&mut tree, &tips, laws, 0.3, 0.002);
+        assert!((stem_law.tip_radius_m - 0.015).abs() < 1e-4, "{stem_law:?}");
+        assert!((tree.radius(forks[7]) - 0.002).abs() < 1e-6);
+        assert!(tree.radius(NodeId::from_index(1)) > 0.25);
+        // A fit thicker than the stem's law is held to it.
+        let thick = PipeLaw { tip_radius_m: 0.05 }.min(stem_law);
+        assert_eq!(thick, stem_law);
     }
 
     #[test]
