@@ -1,5 +1,7 @@
 //! Where the bytes of a compressed DBF6 chain code go, per skeleton JSON file:
-//! `cargo run --release --example chaincode_breakdown -- a.json b.json …`.
+//! `cargo run --release --example chaincode_breakdown -- a.json b.json …`
+//! (`CC_R=3` for another resolution, `CC_D=0.02` for a fixed voxel size in
+//! metres).
 
 use silva::Skeleton;
 use silva::encode::chaincode::{self, ChainOptions, Resolution};
@@ -16,6 +18,16 @@ fn entropy_bits(counts: &[usize]) -> f64 {
         .sum()
 }
 
+/// Median of [`Skeleton::turning_angles_deg`] (NaN without any).
+fn median_turn_deg(s: &Skeleton) -> f32 {
+    let mut turns = s.turning_angles_deg();
+    if turns.is_empty() {
+        return f32::NAN;
+    }
+    let mid = turns.len() / 2;
+    *turns.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
 fn main() {
     let r: f32 = std::env::var("CC_R")
         .ok()
@@ -24,8 +36,9 @@ fn main() {
     for path in std::env::args().skip(1) {
         let text = std::fs::read_to_string(&path).expect("readable file");
         let s = Skeleton::from_json(&text).expect("skeleton JSON");
+        let voxel = std::env::var("CC_D").ok().and_then(|v| v.parse().ok());
         let opts = ChainOptions {
-            resolution: Resolution::PerInternode(r),
+            resolution: voxel.map_or(Resolution::PerInternode(r), Resolution::VoxelSize),
             ..ChainOptions::default()
         };
         let code = chaincode::encode(&s, &opts).expect("encodable");
@@ -44,8 +57,9 @@ fn main() {
         let forks = s.ids().filter(|&i| s.is_fork(i)).count();
         let tips = s.ids().filter(|&i| s.is_tip(i)).count();
         println!(
-            "{path}: internodes {} forks {forks} tips {tips} zero-length {zero} mean len {mean:.3} m cv {cv:.2}",
-            s.internode_count()
+            "{path}: internodes {} forks {forks} tips {tips} zero-length {zero} mean len {mean:.3} m cv {cv:.2} median turn {:.0} deg",
+            s.internode_count(),
+            median_turn_deg(&s)
         );
         println!(
             "  kind {} total {} B = {:.3} B/in; header {} B ({:.3}), meta {} B ({:.3}), structure {} B ({:.3}), moves {} B ({:.3}), radii {} B ({:.3})",

@@ -430,3 +430,58 @@ fn a_poplars_branches_start_on_the_trunks_axis() {
         "precision {precision} against {precision_before}"
     );
 }
+
+fn median_turn_deg(s: &Skeleton) -> f32 {
+    let mut turns = s.turning_angles_deg();
+    let mid = turns.len() / 2;
+    *turns.select_nth_unstable_by(mid, f32::total_cmp).1
+}
+
+/// A straight 1.5 cm twig on a trunk, sampled sparsely: each cross-section
+/// of the twig holds a handful of points, so the centroids zigzag. Smoothed
+/// along the chain (Taubin's λ|μ filter, each node within its section's
+/// reach), the twig's chain turns less, its chain code at a fixed voxel
+/// size is smaller, and its nodes stay inside the twig.
+#[test]
+fn a_sparsely_sampled_twig_gets_a_smooth_chain_inside_it() {
+    use silva::encode::chaincode::{self, ChainOptions, Resolution};
+    let fork = Vec3::new(0.0, 0.0, 1.5);
+    let twig_tip = Vec3::new(1.6, 0.0, 2.7);
+    let tree = vec![
+        (Vec3::ZERO, fork, 0.08),
+        (fork, Vec3::new(0.0, 0.0, 2.0), 0.06),
+        (fork, twig_tip, 0.015),
+    ];
+    let cloud = PointCloud::from_points(OFFSET, scan(&tree, 0.02, 7));
+    let skeleton = |rounds: usize| {
+        let mut opts = dense();
+        opts.dense.thin_smoothing_rounds = rounds;
+        reconstruct(&cloud, &opts).unwrap().skeleton
+    };
+    let bytes = |s: &Skeleton| {
+        let opts = ChainOptions {
+            resolution: Resolution::VoxelSize(0.01),
+            ..ChainOptions::default()
+        };
+        chaincode::encode(s, &opts).unwrap().compress().len()
+    };
+    let (noisy, smooth) = (skeleton(0), skeleton(10));
+    let (turn, turn_before) = (median_turn_deg(&smooth), median_turn_deg(&noisy));
+    assert!(
+        turn < 20.0,
+        "median turn {turn}° (unsmoothed {turn_before}°)"
+    );
+    let (size, size_before) = (bytes(&smooth), bytes(&noisy));
+    assert!(
+        (size as f32) < 0.85 * size_before as f32,
+        "chain code {size} B (unsmoothed {size_before} B)"
+    );
+    let shift = (smooth.anchor().origin - OFFSET).as_vec3();
+    for id in smooth.ids() {
+        let p = smooth.position(id) + shift;
+        if p.x > 0.2 {
+            let off_axis = segment_distance(p, fork, twig_tip);
+            assert!(off_axis < 0.015, "a twig node {off_axis} m off its axis");
+        }
+    }
+}

@@ -292,6 +292,22 @@ impl Skeleton {
             .map_or(0.0, |p| self.position(p).distance(self.position(id)))
     }
 
+    /// The angle, in degrees, between each internode and the one before it
+    /// (its parent's), for every internode whose parent is not the root;
+    /// zero-length internodes are left out. A measure of how much the
+    /// chains zigzag.
+    pub fn turning_angles_deg(&self) -> Vec<f32> {
+        self.ids()
+            .filter_map(|id| {
+                let parent = self.parent(id)?;
+                let before = self.position(parent) - self.position(self.parent(parent)?);
+                let after = self.position(id) - self.position(parent);
+                (before.length() > 0.0 && after.length() > 0.0)
+                    .then(|| before.angle_between(after).to_degrees())
+            })
+            .collect()
+    }
+
     /// Sum of all internode lengths, in metres.
     pub fn total_length(&self) -> f32 {
         self.ids().map(|id| self.internode_length(id)).sum()

@@ -259,8 +259,8 @@ fn detour_from(
 /// cross-section spread is at least `min_spread_m` moves towards the mean of
 /// its parent and its single child, `rounds` times): on thick stems the
 /// centroids of partial cross-sections jitter around the true axis, and the
-/// jitter would otherwise add length. Twigs keep their detail; forks, tips
-/// and the root stay in place.
+/// jitter would otherwise add length. Forks, tips and the root stay in
+/// place; [`smooth_thin_chains`] smooths the twigs.
 pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize, min_spread_m: f32) {
     for _ in 0..rounds {
         let moved: Vec<(NodeId, Vec3)> = skeleton
@@ -279,6 +279,93 @@ pub(super) fn smooth_chains(skeleton: &mut Skeleton, rounds: usize, min_spread_m
         for (id, p) in moved {
             skeleton.set_position(id, p);
         }
+    }
+}
+
+/// How [`smooth_thin_chains`] regularises the chains of thin branches.
+pub(super) struct ThinSmoothing {
+    /// Taubin λ|μ step pairs (0: off).
+    pub(super) rounds: usize,
+    /// Nodes whose cross-section spread reaches this, in metres, are thick:
+    /// [`smooth_chains`] smooths them, and here they stay in place.
+    pub(super) thick_spread_m: f32,
+    /// A node moves at most its cross-section spread from where its
+    /// section put it, and at least this far, in metres (sections of one or
+    /// two points have next to no spread, yet their centroid is a bark
+    /// point).
+    pub(super) min_reach_m: f32,
+}
+
+/// Taubin's shrink-free smoothing factors (Taubin 1995, "A signal
+/// processing approach to fair surface design", §4: λ > 0, μ < −λ, here
+/// with the pass-band `k_PB = 1/λ + 1/μ ≈ 0.11`).
+const TAUBIN_LAMBDA: f32 = 0.5;
+const TAUBIN_MU: f32 = -0.53;
+
+/// Smooths thin branches' chains with Taubin's λ|μ filter (Taubin 1995,
+/// §4) on the chain graph: each interior node steps `λ` (then `μ`) times
+/// along its umbrella vector, the mean of its parent and its child minus
+/// itself. A thin branch's nodes are centroids of a handful of points, so
+/// they zigzag around the axis and space unevenly along it; the filter
+/// removes that high-frequency noise, keeps the low-frequency bends
+/// (plain Laplacian smoothing would also shrink them), and evens out the
+/// internode lengths. Every node stays within `max(spread, min_reach_m)` of
+/// its section's centroid, so the skeleton stays inside the branch. Forks,
+/// tips, the root and thick nodes stay in place (moving forks too made
+/// tree13's code larger). It stands in for AdTree's mean-shift centring
+/// of the skeleton (lsystem-from-adtree-skeletons §2.1.1) on branches too
+/// thin to centre by points.
+pub(super) fn smooth_thin_chains(skeleton: &mut Skeleton, rule: &ThinSmoothing) {
+    let movable: Vec<(NodeId, NodeId, NodeId, Vec3, f32)> = skeleton
+        .ids()
+        .skip(1)
+        .filter(|&id| skeleton.radius(id) < rule.thick_spread_m)
+        .filter_map(|id| {
+            let [child] = skeleton.children(id) else {
+                return None;
+            };
+            let reach = skeleton.radius(id).max(rule.min_reach_m);
+            Some((
+                id,
+                skeleton.parent(id)?,
+                *child,
+                skeleton.position(id),
+                reach,
+            ))
+        })
+        .collect();
+    for _ in 0..rule.rounds {
+        for factor in [TAUBIN_LAMBDA, TAUBIN_MU] {
+            let moved: Vec<Vec3> = movable
+                .iter()
+                .map(|&(id, parent, child, ..)| {
+                    let p = skeleton.position(id);
+                    let mean = 0.5 * (skeleton.position(parent) + skeleton.position(child));
+                    p + factor * (mean - p)
+                })
+                .collect();
+            for (&(id, ..), p) in movable.iter().zip(moved) {
+                skeleton.set_position(id, p);
+            }
+        }
+        // The bound applies to the λ|μ pair as one filter step: clamping
+        // between the two would let μ undo λ's step against the bound.
+        for &(id, _, _, origin, reach) in &movable {
+            let p = clamp_to_ball(skeleton.position(id), origin, reach);
+            skeleton.set_position(id, p);
+        }
+    }
+}
+
+/// `p`, pulled back onto the ball of radius `reach` around `centre` when
+/// it lies outside it.
+fn clamp_to_ball(p: Vec3, centre: Vec3, reach: f32) -> Vec3 {
+    let d = p - centre;
+    let len = d.length();
+    if len > reach && len > 0.0 {
+        centre + d * (reach / len)
+    } else {
+        p
     }
 }
 
@@ -489,5 +576,46 @@ mod tests {
             ..rule
         };
         assert_eq!(s.retain(&bark_detours(&s, &off)).len(), 8);
+    }
+
+    /// A thin chain zigzagging ±3 cm around a straight axis, between a fork
+    /// and a tip, with one thick node: the zigzag shrinks, every thin node
+    /// stays within its reach (its spread, or `min_reach_m` if more) of
+    /// where it was, and the fork, the tip and the thick node stay put.
+    #[test]
+    fn thin_chains_straighten_within_their_sections_reach() {
+        let mut nodes = vec![node([0.0, 0.0, 0.0], None)];
+        for i in 1..=12 {
+            let x = if i % 2 == 0 { 0.03 } else { -0.03 };
+            nodes.push(node([x, 0.0, 0.1 * i as f32], Some(i - 1)));
+        }
+        nodes.push(node([0.3, 0.0, 0.5], Some(4))); // node 4 is a fork
+        nodes[6].radius_m = 0.5; // thick
+        nodes[8].radius_m = 0.035; // a wide section: more reach
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let mut smoothed = s.clone();
+        let rule = ThinSmoothing {
+            rounds: 10,
+            thick_spread_m: 0.1,
+            min_reach_m: 0.02,
+        };
+        smooth_thin_chains(&mut smoothed, &rule);
+        for id in s.ids() {
+            let moved = s.position(id).distance(smoothed.position(id));
+            let reach = s.radius(id).max(rule.min_reach_m);
+            assert!(moved <= reach + 1e-6, "node {id:?} moved {moved} > {reach}");
+            let fixed = s.children(id).len() != 1 || s.radius(id) >= rule.thick_spread_m;
+            if fixed || id == NodeId::ROOT {
+                assert_eq!(moved, 0.0, "node {id:?} must stay");
+            } else {
+                assert!(moved > 0.003, "node {id:?} barely moved: {moved}");
+            }
+        }
+        let wiggle = |s: &Skeleton| -> f32 {
+            (7..12)
+                .map(|i| s.position(NodeId::from_index(i)).x.abs())
+                .sum()
+        };
+        assert!(wiggle(&smoothed) < 0.6 * wiggle(&s));
     }
 }
