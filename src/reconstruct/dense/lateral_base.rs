@@ -79,9 +79,9 @@ pub(super) fn to_parent_axis(skeleton: &Skeleton, rule: &BaseRule) -> Skeleton {
 }
 
 /// The base on the stem's axis for lateral `lateral` of fork `fork`, if it
-/// moves: the stem is the polyline from the fork's parent through the fork
-/// to its main child (so the base never goes below the fork's parent), and
-/// the base is the point of it closest to the line back from the lateral's
+/// moves: the stem is the polyline from the fork's main child down the
+/// stem's chain, at most [`BaseRule::max_drop_spreads`] stem spreads below
+/// the fork ([`stem_below`]), and the base is the point of it closest to the line back from the lateral's
 /// first node along its initial direction, no higher along the stem than
 /// that first node and not below the ground (z = 0, the trunk base).
 fn base_of(skeleton: &Skeleton, fork: NodeId, lateral: NodeId, rule: &BaseRule) -> Option<Base> {
