@@ -237,6 +237,11 @@ fn leaf_off_heights_reach_the_twig_tips() {
         let tree = silva::reconstruct::reconstruct(&cloud, &options).expect("a tree");
         let error = tree.metrics.height_m - opts.foliage.top_height_m(&truth);
         let name = species.name();
+        let caveat = |n: &String| n.starts_with("wood volume is indicative only");
+        assert!(
+            tree.notes.iter().any(caveat),
+            "{name} {seed}: no volume caveat"
+        );
         assert!(
             error.abs() <= 0.3,
             "{name} {seed}: height error {error:+.2} m"
