@@ -26,7 +26,9 @@
 //! base in preference to both equations. A sixth, for leaf-on scans that
 //! show no stem: under a columnar crown Eq. 4's g_b is the centre of the
 //! crown's lowest layer rather than of its footprint
-//! ([`lowest_layer_centre`]).
+//! ([`lowest_layer_centre`]). A seventh, for the crown above the centroid:
+//! the trunk continues as a straight leader to just under the highest
+//! return ([`leader`], [`Params::leader`]).
 
 use glam::{Vec2, Vec3};
 
@@ -58,6 +60,9 @@ pub(super) struct Trunk {
     pub(super) lambda1_deg: f32,
     /// λ2.
     pub(super) lambda2: f32,
+    /// Height of the leader's top above the root, when one was inserted
+    /// (see [`Params::leader`]).
+    pub(super) leader_top_m: Option<f32>,
 }
 
 impl Trunk {
@@ -68,8 +73,11 @@ impl Trunk {
             TrunkRule::FromCrownCentre => "Eq. 4 (footprint centre to crown centroid)",
             TrunkRule::OnStemReturns => "a column of stem returns, then Eq. 4's line",
         };
+        let leader = self.leader_top_m.map_or(String::new(), |top| {
+            format!(", continued as a straight leader to {top:.1} m above the base")
+        });
         format!(
-            "trunk: {} points by {eq}, λ1 = {:.0}°, λ2 = {:.2}",
+            "trunk: {} points by {eq}, λ1 = {:.0}°, λ2 = {:.2}{leader}",
             self.points.len(),
             self.lambda1_deg,
             self.lambda2
@@ -163,12 +171,53 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
             )
         }
     };
+    let mut points = points;
+    let mut leader_top_m = None;
+    if params.leader {
+        let apex = tree
+            .iter()
+            .copied()
+            .fold(v_low, |a, p| if p.z > a.z { p } else { a });
+        let rise = leader(&points, apex, spacing, params.voxel_m);
+        leader_top_m = rise.last().map(|top| top.z - points[0].z);
+        points.extend(rise);
+    }
     Trunk {
         points,
         rule,
         lambda1_deg,
         lambda2,
+        leader_top_m,
     }
+}
+
+/// Steepest lean from the vertical, in degrees, of a leader that
+/// [`leader`] inserts: §5.3's trunks grow nearly upright, and a line to a
+/// highest return farther out is a limb's, not a leader's (the synthetic
+/// crowns' centroid-to-apex lines lean 3–20°).
+const LEADER_MAX_LEAN_DEG: f32 = 30.0;
+
+/// Points that continue `trunk` (root first, at least one point) in a
+/// straight line to one voxel under the crown's highest return `apex`, at
+/// `step_m` spacing, without the trunk's top itself; none when the line
+/// would be shorter than a step or lean more than [`LEADER_MAX_LEAN_DEG`].
+///
+/// Not in Hu et al., whose §4.2 trunk ends at the crown centroid (see
+/// [`Params::leader`]). Excurrent crowns (conifers, poplars, birches) carry
+/// a leader from the trunk to the apex; a needle shell or leaf-on crown
+/// returns nothing near it, and without these points Algorithm 2 carries
+/// the main stem from limb to limb instead.
+fn leader(trunk: &[Vec3], apex: Vec3, step_m: f32, voxel_m: f32) -> Vec<Vec3> {
+    let Some(&from) = trunk.last() else {
+        return Vec::new();
+    };
+    let to = apex - Vec3::Z * voxel_m;
+    let rise = to - from;
+    let lean_deg = rise.angle_between(Vec3::Z).to_degrees();
+    if rise.z <= step_m || lean_deg > LEADER_MAX_LEAN_DEG {
+        return Vec::new();
+    }
+    line(from, to, step_m).into_iter().skip(1).collect()
 }
 
 /// The trunk from `root` through `low` (its lowest hit or a step above the
@@ -486,5 +535,41 @@ mod tests {
         let trunk = add_trunk(&tree, None, &Params::default());
         assert_eq!(trunk.rule, TrunkRule::FromCrownCentre);
         assert!(trunk.points[0].truncate().length() < 0.6);
+    }
+
+    #[test]
+    fn the_leader_rises_from_the_trunk_top_to_a_voxel_under_the_apex() {
+        let trunk = [Vec3::ZERO, Vec3::new(0.0, 0.0, 6.0)];
+        let apex = Vec3::new(0.5, 0.0, 15.0);
+        let rise = leader(&trunk, apex, 0.6, 0.2);
+        let top = *rise.last().unwrap();
+        assert!(top.distance(apex - Vec3::Z * 0.2) < 1e-5);
+        assert!(rise.iter().all(|p| p.z > 6.0));
+        let steps = rise.windows(2).map(|w| w[0].distance(w[1]));
+        assert!(steps.into_iter().all(|d| d <= 0.6 + 1e-5));
+    }
+
+    #[test]
+    fn a_highest_return_far_to_the_side_is_a_limb_not_a_leader() {
+        let trunk = [Vec3::ZERO, Vec3::new(0.0, 0.0, 6.0)];
+        assert!(leader(&trunk, Vec3::new(6.0, 0.0, 12.0), 0.6, 0.2).is_empty());
+        assert!(leader(&trunk, Vec3::new(0.0, 0.0, 6.5), 0.6, 0.2).is_empty());
+    }
+
+    #[test]
+    fn the_trunk_carries_a_leader_only_when_asked() {
+        let mut tree = crown();
+        tree.push(Vec3::new(0.2, 0.1, 12.0));
+        let with = add_trunk(&tree, None, &Params::default());
+        let top = with.points.last().unwrap();
+        assert!(top.z > 11.0, "leader top {top}");
+        assert!(with.note().contains("leader"));
+        let params = Params {
+            leader: false,
+            ..Params::default()
+        };
+        let without = add_trunk(&tree, None, &params);
+        assert!(without.points.last().unwrap().z < 10.0);
+        assert!(!without.note().contains("leader"));
     }
 }
