@@ -118,6 +118,34 @@ impl PointIndex {
     }
 }
 
+/// Most points [`PointIndex::median_spacing`] samples.
+const SPACING_SAMPLES: usize = 2000;
+
+impl PointIndex {
+    /// Median distance from up to 2,000 evenly picked `points` to their
+    /// nearest other point; `points` must be the indexed slice. `None` when
+    /// fewer than two points are indexed.
+    ///
+    /// ```
+    /// use glam::Vec3;
+    /// use silva::spatial::PointIndex;
+    ///
+    /// let pts: Vec<Vec3> = (0..10).map(|i| Vec3::new(0.02 * i as f32, 0.0, 0.0)).collect();
+    /// let spacing = PointIndex::new(&pts).median_spacing(&pts).unwrap();
+    /// assert!((spacing - 0.02).abs() < 1e-6);
+    /// ```
+    pub fn median_spacing(&self, points: &[Vec3]) -> Option<f32> {
+        let step = (points.len() / SPACING_SAMPLES).max(1);
+        let mut nearest: Vec<f32> = points
+            .iter()
+            .step_by(step)
+            .filter_map(|&p| self.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
+            .collect();
+        let mid = nearest.len() / 2;
+        (!nearest.is_empty()).then(|| *nearest.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
+}
+
 fn to_neighbour(n: kiddo::NearestNeighbour<f32, u32>) -> Neighbour {
     Neighbour {
         index: n.item as usize,
