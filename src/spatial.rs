@@ -94,15 +94,55 @@ impl PointIndex {
             .collect()
     }
 
-    /// At most `k` points within `radius`, closest first.
+    /// At most `k` points within `radius`, closest first (equal distances by
+    /// index, so the order does not depend on the tree's layout).
     pub fn nearest_k_within(&self, query: Vec3, k: usize, radius: f32) -> Vec<Neighbour> {
         let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZero::new(k)) else {
             return Vec::new();
         };
-        tree.nearest_n_within::<SquaredEuclidean>(&query.to_array(), radius * radius, k, true)
+        // kiddo keeps a bounded heap when asked for unsorted results and a
+        // sorted vector (an insertion per candidate) otherwise; the heap and
+        // one sort of the `k` results are a quarter faster for the dense
+        // graph's k = 11.
+        let mut found: Vec<Neighbour> = tree
+            .nearest_n_within::<SquaredEuclidean>(&query.to_array(), radius * radius, k, false)
             .into_iter()
             .map(to_neighbour)
-            .collect()
+            .collect();
+        found.sort_unstable_by(|a, b| {
+            a.distance_sq
+                .total_cmp(&b.distance_sq)
+                .then(a.index.cmp(&b.index))
+        });
+        found
+    }
+}
+
+/// Most points [`PointIndex::median_spacing`] samples.
+const SPACING_SAMPLES: usize = 2000;
+
+impl PointIndex {
+    /// Median distance from up to 2,000 evenly picked `points` to their
+    /// nearest other point; `points` must be the indexed slice. `None` when
+    /// fewer than two points are indexed.
+    ///
+    /// ```
+    /// use glam::Vec3;
+    /// use silva::spatial::PointIndex;
+    ///
+    /// let pts: Vec<Vec3> = (0..10).map(|i| Vec3::new(0.02 * i as f32, 0.0, 0.0)).collect();
+    /// let spacing = PointIndex::new(&pts).median_spacing(&pts).unwrap();
+    /// assert!((spacing - 0.02).abs() < 1e-6);
+    /// ```
+    pub fn median_spacing(&self, points: &[Vec3]) -> Option<f32> {
+        let step = (points.len() / SPACING_SAMPLES).max(1);
+        let mut nearest: Vec<f32> = points
+            .iter()
+            .step_by(step)
+            .filter_map(|&p| self.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
+            .collect();
+        let mid = nearest.len() / 2;
+        (!nearest.is_empty()).then(|| *nearest.select_nth_unstable_by(mid, f32::total_cmp).1)
     }
 }
 
@@ -110,5 +150,29 @@ fn to_neighbour(n: kiddo::NearestNeighbour<f32, u32>) -> Neighbour {
     Neighbour {
         index: n.item as usize,
         distance_sq: n.distance,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bounded_neighbours_come_closest_first_and_ties_by_index() {
+        let pts = [
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.5, 0.0),
+        ];
+        let index = PointIndex::new(&pts);
+        let near: Vec<usize> = index
+            .nearest_k_within(Vec3::ZERO, 4, 1.5)
+            .iter()
+            .map(|n| n.index)
+            .collect();
+        assert_eq!(near, vec![4, 0, 2, 3]);
+        assert_eq!(index.nearest_k_within(Vec3::ZERO, 2, 0.6).len(), 1);
     }
 }

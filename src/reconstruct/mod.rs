@@ -485,18 +485,9 @@ fn sampled_spacing(points: &[Vec3]) -> f32 {
     if points.len() < 2 || points.len() > 2_000_000 {
         return f32::NAN;
     }
-    let index = crate::spatial::PointIndex::new(points);
-    let step = (points.len() / 2000).max(1);
-    let mut d: Vec<f32> = points
-        .iter()
-        .step_by(step)
-        .filter_map(|&p| index.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
-        .collect();
-    if d.is_empty() {
-        return f32::NAN;
-    }
-    let mid = d.len() / 2;
-    *d.select_nth_unstable_by(mid, f32::total_cmp).1
+    crate::spatial::PointIndex::new(points)
+        .median_spacing(points)
+        .unwrap_or(f32::NAN)
 }
 
 #[cfg(test)]

@@ -25,9 +25,13 @@ pub(super) fn graph(points: &[Vec3], radius_m: f32, k: usize) -> Vec<Vec<u32>> {
         .iter()
         .enumerate()
         .map(|(i, &p)| {
-            index
-                .nearest_k_within(p, MAX_FRNN_NEIGHBOURS + 1, radius_m)
-                .into_iter()
+            // The lists are sorted by index below, so the nearest-first order
+            // is only needed (and paid for) when the cap applies.
+            let mut near = index.within(p, radius_m);
+            if near.len() > MAX_FRNN_NEIGHBOURS + 1 {
+                near = index.nearest_k_within(p, MAX_FRNN_NEIGHBOURS + 1, radius_m);
+            }
+            near.into_iter()
                 .filter(|n| n.index != i)
                 .map(|n| n.index as u32)
                 .collect()

@@ -13,8 +13,6 @@
 //! [`contract`] then moves each candidate to the mean of the points around
 //! it, which §5.1 does not do; see `Params::contraction_radius_m`.
 
-use std::collections::HashMap;
-
 use glam::{IVec3, Vec3};
 
 use crate::spatial::PointIndex;
@@ -40,19 +38,23 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
     let Some(origin) = points.iter().copied().reduce(Vec3::min) else {
         return Vec::new();
     };
-    let mut sums: HashMap<IVec3, (Vec3, u32)> = HashMap::new();
-    for &p in points {
-        // `as` saturates: absurd extents merge into edge voxels, no overflow.
-        let key = ((p - origin) / voxel_m).floor().as_ivec3();
-        let e = sums.entry(key).or_insert((Vec3::ZERO, 0));
-        e.0 += p;
-        e.1 += 1;
-    }
-    let mut voxels: Vec<(IVec3, Vec3)> = sums
-        .into_iter()
-        .map(|(k, (sum, n))| (k, sum / n as f32))
+    // Sorted by voxel (then input order), each voxel's points form one run.
+    let mut keyed: Vec<((i32, i32, i32), u32)> = (points.iter().enumerate())
+        .map(|(i, &p)| {
+            // `as` saturates: absurd extents merge into edge voxels, no overflow.
+            let k = ((p - origin) / voxel_m).floor().as_ivec3();
+            ((k.z, k.y, k.x), i as u32)
+        })
         .collect();
-    voxels.sort_by_key(|(k, _)| (k.z, k.y, k.x));
+    keyed.sort_unstable();
+    let voxels: Vec<(IVec3, Vec3)> = keyed
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|run| {
+            let (z, y, x) = run[0].0;
+            let sum: Vec3 = run.iter().map(|&(_, i)| points[i as usize]).sum();
+            (IVec3::new(x, y, z), sum / run.len() as f32)
+        })
+        .collect();
     let Some(mut black) = Occupancy::new(voxels.iter().map(|(k, _)| *k)) else {
         // Absurd extents (hostile input): keep the downsampled voxels.
         return voxels.into_iter().map(|(_, p)| p).collect();
@@ -168,8 +170,20 @@ pub(super) fn contract(candidates: &[Vec3], tree: &[Vec3], radius_m: f32) -> Vec
 }
 
 fn offsets() -> impl Iterator<Item = IVec3> {
-    (0..27).map(|i| IVec3::new(i / 9 - 1, (i / 3) % 3 - 1, i % 3 - 1))
+    OFFSETS.into_iter()
 }
+
+/// The 3×3×3 neighbourhood's offsets, indexed as [`CENTRE`] states.
+/// A table: thinning asks for them 26 times per voxel and sweep.
+const OFFSETS: [IVec3; 27] = {
+    let mut table = [IVec3::ZERO; 27];
+    let mut i = 0;
+    while i < 27 {
+        table[i] = IVec3::new(i as i32 / 9 - 1, (i as i32 / 3) % 3 - 1, i as i32 % 3 - 1);
+        i += 1;
+    }
+    table
+};
 
 /// Precomputed adjacency masks of the 27 neighbourhood positions.
 struct Masks {

@@ -268,7 +268,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     }
     require_points(points.len())?;
     let index = PointIndex::new(&points);
-    let spacing = sampled_spacing(&points, &index);
+    let spacing = index.median_spacing(&points).unwrap_or(0.0);
     let knn = graph::knn_edges(
         &points,
         &index,
@@ -433,22 +433,6 @@ fn without_ground(cloud: &PointCloud, notes: &mut Vec<String>) -> Vec<Vec3> {
         ));
     }
     kept
-}
-
-/// Median distance from a point to its nearest neighbour, over up to 2,000
-/// evenly picked points.
-fn sampled_spacing(points: &[Vec3], index: &PointIndex) -> f32 {
-    let step = (points.len() / 2000).max(1);
-    let mut nearest: Vec<f32> = points
-        .iter()
-        .step_by(step)
-        .filter_map(|&p| index.nearest_k(p, 2).get(1).map(|n| n.distance_sq.sqrt()))
-        .collect();
-    if nearest.is_empty() {
-        return 0.0;
-    }
-    let mid = nearest.len() / 2;
-    *nearest.select_nth_unstable_by(mid, f32::total_cmp).1
 }
 
 /// An undirected graph edge: two point indices and the length in metres.
