@@ -242,6 +242,12 @@ fn leaf_off_heights_reach_the_twig_tips() {
             tree.notes.iter().any(caveat),
             "{name} {seed}: no volume caveat"
         );
+        let scatter =
+            |n: &String| n.starts_with("height:") && n.contains(" m, one standard deviation");
+        assert!(
+            tree.notes.iter().any(scatter),
+            "{name} {seed}: the height note states no scatter"
+        );
         assert!(
             error.abs() <= 0.3,
             "{name} {seed}: height error {error:+.2} m"

@@ -175,8 +175,11 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
         // A sparse scan from above rarely hits the apex itself.
         let gap = metrics::apex_gap_m(&tree_cloud.points);
         notes.push(format!(
-            "height: highest return {:.2} m plus {gap:.2} m expected gap to the apex",
-            crown.height_m
+            "height: highest return {:.2} m plus {gap:.2} m expected gap to the apex \
+             (± {:.2} m, one standard deviation: the gap of one tree scatters about its \
+             expectation)",
+            crown.height_m,
+            metrics::APEX_GAP_SCATTER * gap
         ));
         crown.height_m += gap;
     }
