@@ -172,16 +172,11 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         }
     };
     let mut points = points;
-    let mut leader_top_m = None;
-    if params.leader {
-        let apex = tree
-            .iter()
-            .copied()
-            .fold(v_low, |a, p| if p.z > a.z { p } else { a });
-        let rise = leader(&points, apex, spacing, params.voxel_m);
-        leader_top_m = rise.last().map(|top| top.z - points[0].z);
-        points.extend(rise);
-    }
+    let leader_top_m = if params.leader {
+        extend_with_leader(&mut points, tree, spacing, params.voxel_m)
+    } else {
+        None
+    };
     Trunk {
         points,
         rule,
@@ -189,6 +184,24 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         lambda2,
         leader_top_m,
     }
+}
+
+/// Appends [`leader`]'s points towards the highest of `tree` to `trunk`
+/// (root first, not empty) and returns the leader's top above the root.
+fn extend_with_leader(
+    trunk: &mut Vec<Vec3>,
+    tree: &[Vec3],
+    step_m: f32,
+    voxel_m: f32,
+) -> Option<f32> {
+    let apex = tree
+        .iter()
+        .copied()
+        .reduce(|a, p| if p.z > a.z { p } else { a })?;
+    let rise = leader(trunk, apex, step_m, voxel_m);
+    let top_m = rise.last().map(|top| top.z - trunk[0].z);
+    trunk.extend(rise);
+    top_m
 }
 
 /// Steepest lean from the vertical, in degrees, of a leader that
