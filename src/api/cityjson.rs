@@ -209,7 +209,11 @@ pub(super) async fn cityjson_seq(
             }
         },
     );
-    let body = futures::stream::iter([Ok(header), first_lines]).chain(rest);
+    // Fused: the compression layer polls the body again after its end, and
+    // an unfused `unfold` panics then, cutting every compressed stream off.
+    let body = futures::stream::iter([Ok(header), first_lines])
+        .chain(rest)
+        .fuse();
     Ok((
         [(header::CONTENT_TYPE, MEDIA_TYPE_SEQ)],
         Body::from_stream(body),
