@@ -313,7 +313,7 @@ impl<S: Send + Sync> FromRequestParts<S> for BaseUrl {
         Binary,
         crate::store::JobState
     )),
-    modifiers(&BearerAuth),
+    modifiers(&BearerAuth, &MalformedPath),
     tags(
         (name = "trees", description = "Upload scans, read and delete trees"),
         (name = "downloads", description = "Skeletons, encodings, meshes and CityJSON of a tree"),
@@ -332,6 +332,46 @@ impl utoipa::Modify for BearerAuth {
             "api_key",
             SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
         );
+    }
+}
+
+/// Every operation with a path parameter documents the 400 that
+/// [`ApiPath`] answers when the parameter does not parse (an id that is not a
+/// UUID); operations that document a 400 of their own say so there.
+struct MalformedPath;
+
+impl utoipa::Modify for MalformedPath {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::path::ParameterIn;
+        use utoipa::openapi::{Content, Ref, ResponseBuilder};
+
+        for item in openapi.paths.paths.values_mut() {
+            let operations = [
+                &mut item.get,
+                &mut item.post,
+                &mut item.put,
+                &mut item.delete,
+            ];
+            for operation in operations.into_iter().flatten() {
+                let has_path_parameter = operation
+                    .parameters
+                    .iter()
+                    .flatten()
+                    .any(|p| p.parameter_in == ParameterIn::Path);
+                if has_path_parameter {
+                    let problem = Content::new(Some(Ref::from_schema_name("Problem")));
+                    let response = ResponseBuilder::new()
+                        .description("The id is not a UUID")
+                        .content(PROBLEM_JSON, problem)
+                        .build();
+                    operation
+                        .responses
+                        .responses
+                        .entry("400".into())
+                        .or_insert(response.into());
+                }
+            }
+        }
     }
 }
 
