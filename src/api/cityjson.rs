@@ -72,6 +72,7 @@ fn tree_info<'a>(row: &TreeRow, skeleton: &'a Skeleton) -> TreeInfo<'a> {
 #[into_params(parameter_in = Query)]
 pub(super) struct LodQuery {
     /// Level of detail 0–3 (default 2).
+    #[param(minimum = 0, maximum = 3)]
     lod: Option<u8>,
 }
 
@@ -87,7 +88,7 @@ pub(super) struct LodQuery {
         (status = 200, description = "CityJSON 2.0", body = Object, content_type = "application/city+json",
             headers(("ETag" = String))),
         (status = 304, description = "Unchanged"),
-        (status = 400, description = "Bad LOD", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Bad LOD, or the id is not a UUID", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not reconstructed yet", body = Problem, content_type = "application/problem+json"),
     )
@@ -125,8 +126,10 @@ pub(super) async fn cityjson(
 #[into_params(parameter_in = Query)]
 pub(super) struct SeqQuery {
     /// `min_x,min_y,max_x,max_y` in the trees' CRS.
+    #[param(value_type = super::schema::BboxText, inline)]
     bbox: String,
     /// Level of detail 0–3 (default 2).
+    #[param(minimum = 0, maximum = 3)]
     lod: Option<u8>,
     /// CRS of the export (default: that of the first tree found). Trees in
     /// another CRS are not part of the stream, since one stream has one
@@ -209,7 +212,11 @@ pub(super) async fn cityjson_seq(
             }
         },
     );
-    let body = futures::stream::iter([Ok(header), first_lines]).chain(rest);
+    // Fused: the compression layer polls the body again after its end, and
+    // an unfused `unfold` panics then, cutting every compressed stream off.
+    let body = futures::stream::iter([Ok(header), first_lines])
+        .chain(rest)
+        .fuse();
     Ok((
         [(header::CONTENT_TYPE, MEDIA_TYPE_SEQ)],
         Body::from_stream(body),

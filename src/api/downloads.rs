@@ -219,9 +219,11 @@ pub(super) async fn current_skeleton(
 #[into_params(parameter_in = Query)]
 pub(super) struct MeshQuery {
     /// `glb` (default), `obj` or `ply`.
+    #[param(value_type = Option<super::schema::MeshFormatName>, inline)]
     format: Option<String>,
     /// Level of detail 0 (trunk and first-order branches) to 3 (every
     /// branch); default 1.
+    #[param(minimum = 0, maximum = 3)]
     lod: Option<u8>,
 }
 
@@ -241,7 +243,7 @@ pub(super) struct MeshQuery {
                 (Binary = "application/ply"),
             )),
         (status = 304, description = "Unchanged"),
-        (status = 400, description = "Unknown format or LOD", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Unknown format or LOD, or the id is not a UUID", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not reconstructed yet", body = Problem, content_type = "application/problem+json"),
     )

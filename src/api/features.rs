@@ -37,6 +37,7 @@ pub(super) fn routes() -> Router<Arc<AppState>> {
 #[into_params(parameter_in = Query)]
 pub(super) struct ListQuery {
     /// `min_x,min_y,max_x,max_y` in the trees' CRS.
+    #[param(value_type = Option<super::schema::BboxText>, inline)]
     bbox: Option<String>,
     /// Exact species name.
     species: Option<String>,
@@ -47,6 +48,7 @@ pub(super) struct ListQuery {
     /// Exact CRS, e.g. `EPSG:28992`.
     crs: Option<String>,
     /// Page size, 1 to 10000 (default 100).
+    #[param(minimum = 1, maximum = 10000)]
     limit: Option<u32>,
     /// The `next` link's cursor: continue after this tree id.
     cursor: Option<Uuid>,

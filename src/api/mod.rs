@@ -313,7 +313,7 @@ impl<S: Send + Sync> FromRequestParts<S> for BaseUrl {
         Binary,
         crate::store::JobState
     )),
-    modifiers(&BearerAuth),
+    modifiers(&BearerAuth, &MalformedPath, &OptionalReadKey),
     tags(
         (name = "trees", description = "Upload scans, read and delete trees"),
         (name = "downloads", description = "Skeletons, encodings, meshes and CityJSON of a tree"),
@@ -332,6 +332,77 @@ impl utoipa::Modify for BearerAuth {
             "api_key",
             SecurityScheme::Http(Http::new(HttpAuthScheme::Bearer)),
         );
+    }
+}
+
+/// A problem+json response with `description`, for the modifiers below.
+fn problem_response(description: &str) -> utoipa::openapi::RefOr<utoipa::openapi::Response> {
+    use utoipa::openapi::{Content, Ref, ResponseBuilder};
+    let problem = Content::new(Some(Ref::from_schema_name("Problem")));
+    ResponseBuilder::new()
+        .description(description)
+        .content(PROBLEM_JSON, problem)
+        .build()
+        .into()
+}
+
+/// Every operation with a path parameter documents the 400 that
+/// [`ApiPath`] answers when the parameter does not parse (an id that is not a
+/// UUID); operations that document a 400 of their own say so there.
+struct MalformedPath;
+
+impl utoipa::Modify for MalformedPath {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::path::ParameterIn;
+
+        for item in openapi.paths.paths.values_mut() {
+            let operations = [
+                &mut item.get,
+                &mut item.post,
+                &mut item.put,
+                &mut item.delete,
+            ];
+            for operation in operations.into_iter().flatten() {
+                let has_path_parameter = operation
+                    .parameters
+                    .iter()
+                    .flatten()
+                    .any(|p| p.parameter_in == ParameterIn::Path);
+                if has_path_parameter {
+                    operation
+                        .responses
+                        .responses
+                        .entry("400".into())
+                        .or_insert_with(|| problem_response("The id is not a UUID"));
+                }
+            }
+        }
+    }
+}
+
+/// The read routes of /v1 ([`ReadAccess`]) take a key when
+/// `read_requires_key` is set: their security is optional (`{}` or the
+/// key) and their 401 documented. Write routes declare theirs themselves.
+struct OptionalReadKey;
+
+impl utoipa::Modify for OptionalReadKey {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::SecurityRequirement;
+
+        for (path, item) in &mut openapi.paths.paths {
+            let Some(read) = item.get.as_mut().filter(|_| path.starts_with("/v1/")) else {
+                continue;
+            };
+            read.security.get_or_insert_with(|| {
+                vec![
+                    SecurityRequirement::default(),
+                    SecurityRequirement::new("api_key", Vec::<String>::new()),
+                ]
+            });
+            read.responses.responses.entry("401".into()).or_insert_with(|| {
+                problem_response("Missing or wrong API key, when reads require one (`SILVA_READ_REQUIRES_KEY`)")
+            });
+        }
     }
 }
 

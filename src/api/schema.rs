@@ -1,11 +1,16 @@
 //! JSON documents of the API: trees, jobs, GeoJSON features, links.
 
+use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use time::OffsetDateTime;
 use time::format_description::well_known::Rfc3339;
 use utoipa::ToSchema;
+use utoipa::openapi::RefOr;
+use utoipa::openapi::schema::{Object, ObjectBuilder, Schema, Type};
 use uuid::Uuid;
 
+use crate::mesh::MeshFormat;
+use crate::reconstruct::Mode;
 use crate::store::{JobRow, JobState, TreeRow};
 
 /// A hyperlink (RFC 8288 / OGC API style).
@@ -262,3 +267,52 @@ pub(super) fn rfc3339(ms: i64) -> String {
 #[derive(Debug, Clone, ToSchema)]
 #[schema(value_type = String, format = Binary)]
 pub struct Binary(pub Vec<u8>);
+
+/// A string parameter that takes one of `values`.
+fn one_of(values: impl IntoIterator<Item = &'static str>) -> Object {
+    ObjectBuilder::new()
+        .schema_type(Type::String)
+        .enum_values(Some(values))
+        .build()
+}
+
+/// Declares a marker type whose schema is `$schema`: for query parameters
+/// that are plain strings in Rust but take a narrower form on the wire, as
+/// `#[param(value_type = Option<Marker>, inline)]`.
+macro_rules! param_schema {
+    ($(#[$doc:meta])* $name:ident => $schema:expr) => {
+        $(#[$doc])*
+        pub(super) struct $name;
+
+        impl utoipa::PartialSchema for $name {
+            fn schema() -> RefOr<Schema> {
+                $schema.into()
+            }
+        }
+
+        impl ToSchema for $name {}
+    };
+}
+
+param_schema!(
+    /// The `mode` of an upload: a [`Mode`]'s name.
+    ModeName => one_of(Mode::value_variants().iter().map(|mode| mode.name()))
+);
+
+param_schema!(
+    /// The `format` of a mesh download: a [`MeshFormat`]'s extension.
+    MeshFormatName => one_of([MeshFormat::Glb, MeshFormat::Obj, MeshFormat::Ply].map(MeshFormat::extension))
+);
+
+param_schema!(
+    /// A `bbox`: four comma-separated decimal numbers, as `parse_bbox`
+    /// reads them. The pattern cannot say that min is at most max; exponents
+    /// of at most two digits keep the numbers finite.
+    BboxText => {
+        const NUMBER: &str = "-?([0-9]+(\\.[0-9]*)?|\\.[0-9]+)([eE][-+]?[0-9]{1,2})?";
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .pattern(Some(format!("^{NUMBER},{NUMBER},{NUMBER},{NUMBER}$")))
+            .build()
+    }
+);

@@ -49,6 +49,7 @@ pub(super) struct IngestQuery {
     /// to that tree (a rescan) and replaces its model.
     external_id: Option<String>,
     /// Acquisition date, `YYYY-MM-DD`.
+    #[param(format = Date)]
     acquired: Option<String>,
     /// Where the scan comes from, e.g. `TLS` or `AHN4`.
     source: Option<String>,
@@ -56,7 +57,7 @@ pub(super) struct IngestQuery {
     crs: Option<String>,
     /// Reconstruction pipeline: `auto` (default: chosen from point density
     /// and trunk coverage), `dense` (terrestrial/mobile) or `airborne`.
-    #[param(value_type = Option<String>)]
+    #[param(value_type = Option<super::schema::ModeName>, inline)]
     mode: Option<Mode>,
     /// Answer only when the tree is reconstructed (201 with the tree) or
     /// the time limit is near (202 with the job).
