@@ -16,6 +16,9 @@ use kiddo::immutable::float::kdtree::ImmutableKdTree;
 /// Leaf size of the kd-tree; 32 is kiddo's recommended default for 3D.
 const BUCKET: usize = 32;
 
+/// Most points [`PointIndex::median_spacing`] samples.
+const SPACING_SAMPLES: usize = 2000;
+
 /// A neighbour found by a query: the point's index in the indexed slice and
 /// its squared distance to the query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -116,12 +119,7 @@ impl PointIndex {
         });
         found
     }
-}
 
-/// Most points [`PointIndex::median_spacing`] samples.
-const SPACING_SAMPLES: usize = 2000;
-
-impl PointIndex {
     /// Median distance from up to 2,000 evenly picked `points` to their
     /// nearest other point; `points` must be the indexed slice. `None` when
     /// fewer than two points are indexed.

@@ -301,7 +301,7 @@ param_schema!(
 
 param_schema!(
     /// The `format` of a mesh download: a [`MeshFormat`]'s extension.
-    MeshFormatName => one_of([MeshFormat::Glb, MeshFormat::Obj, MeshFormat::Ply].map(MeshFormat::extension))
+    MeshFormatName => one_of(MeshFormat::ALL.map(MeshFormat::extension))
 );
 
 param_schema!(

@@ -117,6 +117,9 @@ pub enum MeshFormat {
 }
 
 impl MeshFormat {
+    /// Every format, in the order the API lists them.
+    pub const ALL: [MeshFormat; 3] = [MeshFormat::Glb, MeshFormat::Obj, MeshFormat::Ply];
+
     /// The format for a file extension (`"obj"`, `"ply"`, `"glb"`, any case).
     pub fn from_extension(extension: &str) -> Option<MeshFormat> {
         match extension.to_ascii_lowercase().as_str() {
