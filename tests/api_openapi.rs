@@ -1,7 +1,13 @@
-//! The committed OpenAPI document matches the code.
+//! The committed OpenAPI document matches the code, and the server what it says.
 //!
 //! Regenerate it with `UPDATE_OPENAPI=1 cargo test --test api_openapi` or
-//! `silva serve --print-openapi > openapi/openapi.json`.
+//! `silva serve --print-openapi > openapi/openapi.json`. The server's
+//! answers are checked against the bounds the document states.
+
+mod common;
+
+use common::{TestDb, TestServer, assert_problem, config};
+use serde_json::Value;
 
 #[test]
 fn committed_spec_is_current() {
@@ -45,11 +51,6 @@ fn every_route_is_documented_with_problem_errors() {
     assert!(upload["responses"]["413"]["content"]["application/problem+json"].is_object());
     assert!(upload["security"].is_array());
 }
-
-mod common;
-
-use common::{TestDb, TestServer, assert_problem, config};
-use serde_json::Value;
 
 /// The schema of parameter `name` of `method path` in the spec.
 fn parameter<'a>(spec: &'a Value, path: &str, method: &str, name: &str) -> &'a Value {
