@@ -31,7 +31,9 @@
 //!    main extension first;
 //! 5. `lateral_base`: laterals of thick stems extended back along their
 //!    initial direction to the stem's axis, where the truth (and a QSM)
-//!    starts them, rather than joined across the wood from the bark.
+//!    starts them, rather than joined across the wood from the bark;
+//! 6. `tips`: each tip moved from its last section's centroid to the
+//!    scan's last point ahead of it.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines.
@@ -48,6 +50,7 @@ mod graph;
 mod lateral_base;
 mod simplify;
 mod skeletonize;
+mod tips;
 
 pub(crate) use simplify::point_segment_distance;
 
@@ -182,6 +185,17 @@ pub struct Params {
     /// A thin node moves at most its cross-section spread, or this many bin
     /// widths if more, from its section's centroid.
     pub thin_smoothing_reach_bins: f32,
+    /// Move each tip from the centroid of its last cross-section to the
+    /// scan's last point ahead of it (see `tips`).
+    ///
+    /// Measured (release build, one session, `silva eval`): tree1 within
+    /// 2 cm of the cylinders 80.9 → 82.3 %, tree13 67.6 → 69.1 %; clean
+    /// synthetic TLS (`--synthetic 20 --density 1000 --no-occlusion`) median
+    /// recall 99.22 → 99.26 %, precision 99.34 → 99.36 %; default TLS
+    /// (`--synthetic 12`) median recall 83.05 → 83.19 %, precision 84.48 →
+    /// 84.40 % (thick tips on occluded poplars and pines lose up to 0.6
+    /// points of precision).
+    pub tips_reach_last_points: bool,
     /// Douglas–Peucker tolerance in cross-section spreads, where larger than
     /// [`Params::simplify_bins`]: thick stems' centroids jitter more.
     pub simplify_spreads: f32,
@@ -230,6 +244,7 @@ impl Default for Params {
             smoothing_rounds: 3,
             thin_smoothing_rounds: 0,
             thin_smoothing_reach_bins: 1.0,
+            tips_reach_last_points: true,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
             min_component_points: 5,
@@ -377,8 +392,12 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         },
     );
     skeleton.order_main_extension_first();
-    let skeleton = skeleton.canonical();
     let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
+    if params.tips_reach_last_points {
+        let index = PointIndex::new(&tree_points);
+        tips::reach_last_points(&mut skeleton, &tree_points, &index, bin_m);
+    }
+    let skeleton = skeleton.canonical();
     Ok(DenseOutput {
         skeleton,
         cloud: PointCloud::from_points(origin, tree_points),
