@@ -33,7 +33,8 @@
 //!    initial direction to the stem's axis, where the truth (and a QSM)
 //!    starts them, rather than joined across the wood from the bark;
 //! 6. `tips`: each tip moved from its last section's centroid to the
-//!    scan's last point ahead of it.
+//!    scan's last point ahead of it, and each twig on by the median gap
+//!    between a twig's last scanned point and its end.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines.
@@ -196,6 +197,20 @@ pub struct Params {
     /// 84.40 % (thick tips on occluded poplars and pines lose up to 0.6
     /// points of precision).
     pub tips_reach_last_points: bool,
+    /// Extend each thin tip beyond its last point by the median gap between
+    /// a twig's last scanned point and its end, ln 2 / λ for λ points per
+    /// metre (see `tips`).
+    ///
+    /// Measured (release build, one session, `silva eval`, against the same
+    /// build with it off): clean synthetic TLS (`--synthetic 20 --density
+    /// 1000 --no-occlusion`) median recall 99.26 → 99.64 %, precision 99.36
+    /// → 99.40 %, both ≥ 99 % on 13 of 20 trees (12); default TLS
+    /// (`--synthetic 12`) median recall 83.2 → 86.8 %, precision 84.4 →
+    /// 85.7 %, mean skeleton distance 5.6 → 5.2 cm, every tree better in
+    /// both; tree1 within 2 cm 82.3 → 82.2 %, tree13 69.1 → 69.6 %, its
+    /// supported surface 36.0 → 38.0 %. The volume ratios to the truth
+    /// barely move (default TLS median 1.18 → 1.17, largest 1.45 → 1.48).
+    pub tips_expected_gap: bool,
     /// Douglas–Peucker tolerance in cross-section spreads, where larger than
     /// [`Params::simplify_bins`]: thick stems' centroids jitter more.
     pub simplify_spreads: f32,
@@ -245,6 +260,7 @@ impl Default for Params {
             thin_smoothing_rounds: 0,
             thin_smoothing_reach_bins: 1.0,
             tips_reach_last_points: true,
+            tips_expected_gap: true,
             simplify_spreads: 0.25,
             simplify_bins: 0.3,
             min_component_points: 5,
@@ -393,9 +409,14 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     );
     skeleton.order_main_extension_first();
     let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
-    if params.tips_reach_last_points {
+    if params.tips_reach_last_points || params.tips_expected_gap {
         let index = PointIndex::new(&tree_points);
-        tips::reach_last_points(&mut skeleton, &tree_points, &index, bin_m);
+        let rule = tips::TipRule {
+            bin_m,
+            reach_last_points: params.tips_reach_last_points,
+            expected_gap: params.tips_expected_gap,
+        };
+        tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
     }
     let skeleton = skeleton.canonical();
     Ok(DenseOutput {
