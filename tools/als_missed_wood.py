@@ -138,4 +138,5 @@ def main():
           f"{(d_recon <= 0.3).sum()}")
 
 
-main()
+if __name__ == "__main__":
+    main()
