@@ -15,7 +15,7 @@
 //! (memorylessness), whatever the twig's length; its median is ln 2 / λ.
 //! The second step, [`TipRule::expected_gap`], extends each thin tip by that
 //! median, with λ counted over the twig's last [`GAP_SPAN_BINS`] bin widths
-//! and the extension capped at [`MAX_GAP_BINS`]. The airborne pipeline does
+//! and the extension capped at [`MAX_GAP_BINS`] and [`MAX_GAP_M`]. The airborne pipeline does
 //! the same for the tree's height (`metrics::apex_gap_m`). Short laterals
 //! near a thick stem are left alone: most are patches of the stem's own
 //! bark, which have no end to extrapolate.
@@ -31,6 +31,13 @@ pub(super) const GAP_SPAN_BINS: f32 = 10.0;
 
 /// A twig's end moves at most this many bin widths beyond its last point.
 pub(super) const MAX_GAP_BINS: f32 = 3.0;
+
+/// …and at most this far, in metres. On a sparse cloud (an airborne scan
+/// run through the dense pipeline) bins are decimetres wide, and a gap of
+/// several of them is missing data, not a twig's last sampling gap: with
+/// the bin cap alone, tiny.xyz in `--mode dense` lost 4 points of its
+/// points within 2 cm of the cylinders.
+pub(super) const MAX_GAP_M: f32 = 0.1;
 
 /// How [`place_tips`] treats the tips.
 #[derive(Debug, Clone, Copy)]
@@ -121,7 +128,9 @@ impl TipLine {
             .filter(|d| d.dot(self.direction) <= 0.0)
             .count();
         let rate = behind.max(1) as f32 / span;
-        (std::f32::consts::LN_2 / rate).min(MAX_GAP_BINS * bin_m)
+        (std::f32::consts::LN_2 / rate)
+            .min(MAX_GAP_BINS * bin_m)
+            .min(MAX_GAP_M)
     }
 }
 
