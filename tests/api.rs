@@ -801,3 +801,57 @@ async fn a_nul_in_the_query_is_a_400() {
     })
     .await;
 }
+
+/// Found by `tools/hostile_uploads.py`: a gzip-encoded cloud was answered
+/// with a 422 about its bytes, a `Content-Encoding: br` claim on plain text
+/// was ignored, and a multipart form (`curl -F`) was read as XYZ text. All
+/// are a 415 that says to send the file itself; identity is fine.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn compressed_or_form_uploads_are_a_415() {
+    use std::io::Write;
+    let cloud = b"0 0 0\n0 0 1\n0 0 2\n1 1 1\n".to_vec();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(&cloud).unwrap();
+    let gzipped = gz.finish().unwrap();
+    let form = [
+        &b"--b\r\nContent-Disposition: form-data; name=\"file\"; filename=\"t.xyz\"\r\n\r\n"[..],
+        &cloud,
+        b"\r\n--b--\r\n",
+    ]
+    .concat();
+    on_both(|url| {
+        let (cloud, gzipped, form) = (cloud.clone(), gzipped.clone(), form.clone());
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let post = |header: (&'static str, &'static str), body: Vec<u8>| {
+                srv.http
+                    .post(srv.url("/v1/trees"))
+                    .header(header.0, header.1)
+                    .body(body)
+                    .send()
+            };
+            for (header, body) in [
+                (("content-encoding", "gzip"), gzipped.clone()),
+                (("content-encoding", "br"), cloud.clone()),
+                (("content-encoding", "identity, deflate"), cloud.clone()),
+                (("content-type", "multipart/form-data; boundary=b"), form),
+            ] {
+                let res = post(header, body).await.unwrap();
+                assert_eq!(res.headers()["accept-encoding"], "identity");
+                let problem = assert_problem(res, 415).await;
+                assert!(
+                    problem["detail"].as_str().unwrap().contains("file itself"),
+                    "{problem}"
+                );
+            }
+            assert_eq!(srv.tree_count().await, 0, "a refused upload stored nothing");
+            let res = post(("content-encoding", "identity"), cloud.clone()).await;
+            assert_eq!(res.unwrap().status(), 202);
+            // The format is told from the content, whatever the label says.
+            let res = post(("content-type", "application/json"), cloud).await;
+            assert_eq!(res.unwrap().status(), 202);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
