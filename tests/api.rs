@@ -855,3 +855,43 @@ async fn compressed_or_form_uploads_are_a_415() {
     })
     .await;
 }
+
+/// Found by `tools/hostile_uploads.py`: an airborne clip with one return
+/// 99 km above its crown held a job worker for about 90 s and stored a
+/// 99 km tree. The job now fails at once, saying why.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_return_kilometres_above_the_crown_fails_the_job_at_once() {
+    let tree = silva::synth::generate(
+        &silva::synth::TreeParams::preset(silva::synth::Species::Oak),
+        3,
+        silva::skeleton::Anchor::at(ORIGIN),
+    );
+    let clip = silva::synth::simulate_als(&tree, &Default::default(), 3);
+    let mut points = clip.points;
+    let top = points.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    points.push(glam::Vec3::new(0.0, 0.0, top + 99_000.0));
+    let cloud = silva::cloud::PointCloud::from_points(clip.offset, points);
+    let scan = silva::cloud::to_laz_bytes(&cloud).unwrap();
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let started = std::time::Instant::now();
+            let res = srv.upload("mode=airborne", &scan).await;
+            assert_eq!(res.status(), 202);
+            let job: Value = res.json().await.unwrap();
+            let done = srv.wait_job(job["id"].as_str().unwrap()).await;
+            assert_eq!(done["state"], "failed", "{done}");
+            let error = done["error"].as_str().unwrap();
+            assert!(error.contains("more than any tree"), "{error}");
+            assert!(
+                started.elapsed() < Duration::from_secs(10),
+                "{:?}",
+                started.elapsed()
+            );
+            assert_eq!(srv.get("/healthz").await.status(), 200);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
