@@ -545,3 +545,29 @@ proptest! {
         }
     }
 }
+
+/// Found by `tools/hostile_uploads.py`: one return 99 km above the crown
+/// (a bird, a corrupt record) made the pipeline grow its leader up to it, a
+/// trunk point every 0.6 m, and return a 99 km tree after seconds of work
+/// (and a minute of encoding in the service). Refused before that work.
+#[test]
+fn a_return_kilometres_above_the_crown_is_refused_at_once() {
+    let truth = truth(Species::Oak, 3);
+    let scan = simulate_als(&truth, &AlsOptions::default(), 3);
+    let mut points = scan.points;
+    let top = points.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    points.push(Vec3::new(0.0, 0.0, top + 99_000.0));
+    let cloud = PointCloud::from_points(scan.offset, points);
+    let started = std::time::Instant::now();
+    let err = reconstruct(&cloud, &Params::default()).unwrap_err();
+    assert!(
+        matches!(err, ReconstructError::TooTall { height_m, .. } if height_m > 99_000.0),
+        "{err}"
+    );
+    assert!(err.to_string().contains("more than any tree"), "{err}");
+    assert!(
+        started.elapsed().as_secs_f32() < 1.0,
+        "{:?}",
+        started.elapsed()
+    );
+}

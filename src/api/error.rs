@@ -76,6 +76,10 @@ pub enum ApiError {
         /// The limit in bytes.
         limit: usize,
     },
+    /// The body comes in a form silva does not read (a content coding, a
+    /// multipart form); the file itself would be accepted.
+    #[error("{0}")]
+    UnsupportedMediaType(String),
     /// The body is well-formed HTTP but not a usable point cloud.
     #[error("{0}")]
     Unprocessable(String),
@@ -97,6 +101,9 @@ impl ApiError {
             ApiError::Conflict(_) => (StatusCode::CONFLICT, "conflict"),
             ApiError::PayloadTooLarge { .. } => {
                 (StatusCode::PAYLOAD_TOO_LARGE, "payload-too-large")
+            }
+            ApiError::UnsupportedMediaType(_) => {
+                (StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported-media-type")
             }
             ApiError::Unprocessable(_) => (StatusCode::UNPROCESSABLE_ENTITY, "unprocessable-cloud"),
             ApiError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
@@ -124,6 +131,13 @@ impl IntoResponse for ApiError {
             res.headers_mut().insert(
                 header::WWW_AUTHENTICATE,
                 HeaderValue::from_static("Bearer realm=\"silva\""),
+            );
+        }
+        if status == StatusCode::UNSUPPORTED_MEDIA_TYPE {
+            // RFC 9110 §12.5.3: the codings a request may use.
+            res.headers_mut().insert(
+                header::ACCEPT_ENCODING,
+                HeaderValue::from_static("identity"),
             );
         }
         res

@@ -18,7 +18,7 @@ use uuid::Uuid;
 
 use super::downloads::not_modified;
 use super::error::Problem;
-use super::extract::{ApiPath, ApiQuery};
+use super::extract::{ApiPath, ApiQuery, RawUpload};
 use super::schema::{Binary, Job, Tree};
 use super::{ApiError, AppState, BaseUrl, Config, ReadAccess, WriteAccess};
 use crate::jobs::JobOptions;
@@ -68,7 +68,8 @@ pub(super) struct IngestQuery {
 /// Upload a point cloud of one tree.
 ///
 /// The body is the cloud in any supported format (XYZ text, PLY, LAS, LAZ;
-/// detected from content). It is validated, stored LAZ-compressed together
+/// detected from content), sent as it is: not under a `Content-Encoding`,
+/// not in a multipart form. It is validated, stored LAZ-compressed together
 /// with a reconstruction job in one transaction, and only then answered.
 #[utoipa::path(
     post,
@@ -88,6 +89,8 @@ pub(super) struct IngestQuery {
         (status = 400, description = "Bad query", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "The body is compressed (`Content-Encoding`) or a multipart form: send the file itself",
+            body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Not a readable point cloud, or (with `wait=true`) no tree could be reconstructed from it",
             body = Problem, content_type = "application/problem+json"),
     ),
@@ -98,6 +101,7 @@ pub(super) async fn create_tree(
     _: WriteAccess,
     BaseUrl(base): BaseUrl,
     ApiQuery(query): ApiQuery<IngestQuery>,
+    _: RawUpload,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
     let body = body.map_err(|rejection| match rejection {

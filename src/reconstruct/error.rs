@@ -27,6 +27,18 @@ pub enum ReconstructError {
         /// Smallest gap between the detached part and the tree, in metres.
         gap_m: f32,
     },
+    /// The tree points span more height than any tree has.
+    #[error(
+        "the tree points span {height_m:.0} m in height, more than any tree ({max_m:.0} m at \
+         most): remove noise returns far above or below the tree (birds, multipath; LAS classes \
+         7 and 18), or check that z is in metres"
+    )]
+    TooTall {
+        /// Height spanned by the points, in metres.
+        height_m: f32,
+        /// The limit, [`super::MAX_TREE_HEIGHT_M`].
+        max_m: f32,
+    },
     /// Ground removal left too few points for a tree.
     #[error(
         "only {tree} points above the ground ({ground} ground points); at least {needed} needed \

@@ -36,6 +36,11 @@ pub use error::ReconstructError;
 /// Fewest points any pipeline accepts: below this there is no tree shape.
 pub const MIN_POINTS: usize = 10;
 
+/// Most height, in metres, that the points of one tree may span. The
+/// tallest measured trees (coast redwoods, mountain ash) stand 116–132 m;
+/// the rest is room for sloping ground in the clip.
+pub const MAX_TREE_HEIGHT_M: f32 = 200.0;
+
 /// Which reconstruction pipeline to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -227,6 +232,30 @@ pub fn validate(cloud: &PointCloud) -> Result<(), ReconstructError> {
         return Err(ReconstructError::Degenerate(
             "all points lie on one plane".into(),
         ));
+    }
+    Ok(())
+}
+
+/// Rejects tree points that span more height than [`MAX_TREE_HEIGHT_M`].
+/// Called by the pipelines on the points they grow the skeleton over (after
+/// their own noise removal), before the work that scales with height: one
+/// return 99 km above a 2000-point crown made the airborne pipeline grow its
+/// leader up to it, a trunk point every 0.6 m, and a job ran 90 s to store a
+/// 99 km tree (found by `tools/hostile_uploads.py`).
+pub(crate) fn check_height<'a>(
+    points: impl IntoIterator<Item = &'a Vec3>,
+) -> Result<(), ReconstructError> {
+    let (low, high) = points
+        .into_iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.z), hi.max(p.z))
+        });
+    let height_m = high - low;
+    if height_m > MAX_TREE_HEIGHT_M {
+        return Err(ReconstructError::TooTall {
+            height_m,
+            max_m: MAX_TREE_HEIGHT_M,
+        });
     }
     Ok(())
 }

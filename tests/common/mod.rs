@@ -195,6 +195,13 @@ impl TestServer {
         done["tree_id"].as_str().unwrap().to_owned()
     }
 
+    /// How many trees the first page of the listing holds (a refused
+    /// upload must store none).
+    pub async fn tree_count(&self) -> u64 {
+        let listed: Value = self.get("/v1/trees").await.json().await.unwrap();
+        listed["numberReturned"].as_u64().expect("numberReturned")
+    }
+
     /// Stops the server.
     pub async fn stop(self) {
         self.server.shutdown(Duration::from_secs(10)).await;

@@ -235,6 +235,7 @@ pub fn reconstruct(
     check_volume(&split.tree.points)?;
 
     let tree = &without_low_outliers(&split, &mut notes);
+    super::check_height(tree)?;
     let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
     notes.push(trunk.note());
     let mut points = trunk.points.clone();

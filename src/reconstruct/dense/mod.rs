@@ -319,6 +319,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     });
     let (points, edges) = connect(points, knn, bin_m, params, &mut notes)?;
     require_points(points.len())?;
+    super::check_height(&points)?;
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
     super::check_upright(&points, base_z, top_z)?;
