@@ -42,6 +42,7 @@
 //! # Ok::<(), silva::encode::lsystem::LsError>(())
 //! ```
 
+mod decimal;
 mod expand;
 mod format;
 mod generalise;

@@ -61,7 +61,8 @@ pub(crate) fn compress(
         .filter(|c| !b"Ff".contains(c) && !taken.contains(c));
     let mut symbols = Symbols::default();
     let mut ids: Vec<u32> = axiom.iter().map(|s| symbols.id(s)).collect();
-    while let Some(pattern) = best_pattern(&ids, &symbols) {
+    let mut scratch = Scratch::default();
+    while let Some(pattern) = best_pattern(&ids, &symbols, &mut scratch) {
         let Some(letter) = free.next() else {
             break;
         };
@@ -81,11 +82,14 @@ pub(crate) fn compress(
 
 /// The single symbol or adjacent pair whose replacement saves most bytes,
 /// if any saves some. Ties go to the smallest ids, so the result does not
-/// depend on hash order. Pairs are counted by sorting, without overlap
+/// depend on counting order. Pairs are counted by sorting, without overlap
 /// inside runs such as `aaa`.
-fn best_pattern(ids: &[u32], symbols: &Symbols) -> Option<Vec<u32>> {
-    let mut singles = vec![0usize; symbols.table.len()];
-    let mut pairs: Vec<u64> = Vec::with_capacity(ids.len());
+fn best_pattern(ids: &[u32], symbols: &Symbols, scratch: &mut Scratch) -> Option<Vec<u32>> {
+    let singles = &mut scratch.singles;
+    singles.clear();
+    singles.resize(symbols.table.len(), 0);
+    let pairs = &mut scratch.pairs;
+    pairs.clear();
     let mut last_counted = usize::MAX;
     for (i, &id) in ids.iter().enumerate() {
         if symbols.table[id as usize].param.is_some() {
@@ -96,25 +100,69 @@ fn best_pattern(ids: &[u32], symbols: &Symbols) -> Option<Vec<u32>> {
         }
         let overlaps = last_counted == i - 1 && ids[i - 2] == ids[i - 1] && ids[i - 1] == id;
         if !overlaps {
-            pairs.push((u64::from(ids[i - 1]) << 32) | u64::from(id));
+            pairs.push([ids[i - 1], id]);
             last_counted = i;
         }
     }
-    pairs.sort_unstable();
+    sort_pairs(
+        pairs,
+        symbols.table.len(),
+        &mut scratch.sorted,
+        &mut scratch.start,
+    );
     let cost = |id: u32| symbols.cost[id as usize];
+    // A single `[a]` orders before the pair `[a, b]`, as `None` before `Some`.
     let singles = singles
         .iter()
         .enumerate()
         .filter(|&(_, &n)| n > 0)
-        .map(|(id, &n)| (saving(n, cost(id as u32)), vec![id as u32]));
+        .map(|(id, &n)| (saving(n, cost(id as u32)), (id as u32, None)));
     let pairs = pairs.chunk_by(|a, b| a == b).map(|run| {
-        let (a, b) = ((run[0] >> 32) as u32, run[0] as u32);
-        (saving(run.len(), cost(a) + cost(b)), vec![a, b])
+        let [a, b] = run[0];
+        (saving(run.len(), cost(a) + cost(b)), (a, Some(b)))
     });
-    let (gain, pattern) = singles
+    let (gain, (first, second)) = singles
         .chain(pairs)
         .max_by(|x, y| x.0.cmp(&y.0).then_with(|| y.1.cmp(&x.1)))?;
-    (gain > 0).then_some(pattern)
+    (gain > 0).then(|| std::iter::once(first).chain(second).collect())
+}
+
+/// Buffers that [`best_pattern`] reuses from one rule to the next.
+#[derive(Default)]
+struct Scratch {
+    singles: Vec<usize>,
+    pairs: Vec<[u32; 2]>,
+    sorted: Vec<[u32; 2]>,
+    start: Vec<usize>,
+}
+
+/// Sorts pairs of ids below `symbol_count` by a two-pass radix sort (by
+/// the second id, then stably by the first): linear, where a comparison
+/// sort of every pair for every rule dominated the encoder.
+fn sort_pairs(
+    pairs: &mut Vec<[u32; 2]>,
+    symbol_count: usize,
+    sorted: &mut Vec<[u32; 2]>,
+    start: &mut Vec<usize>,
+) {
+    for digit in [1, 0] {
+        start.clear();
+        start.resize(symbol_count + 1, 0);
+        for p in pairs.iter() {
+            start[p[digit] as usize + 1] += 1;
+        }
+        for i in 1..start.len() {
+            start[i] += start[i - 1];
+        }
+        sorted.clear();
+        sorted.resize(pairs.len(), [0; 2]);
+        for &p in pairs.iter() {
+            let slot = &mut start[p[digit] as usize];
+            sorted[*slot] = p;
+            *slot += 1;
+        }
+        std::mem::swap(pairs, sorted);
+    }
 }
 
 /// Bytes saved by replacing `count` occurrences of a pattern of `len` bytes
@@ -141,20 +189,22 @@ pub(crate) fn rule_depths(rules: &BTreeMap<u8, Vec<Symbol>>) -> HashMap<u8, u32>
     depth
 }
 
-/// Replaces every non-overlapping occurrence of `pattern`, left to right.
+/// Replaces every non-overlapping occurrence of `pattern`, left to right,
+/// in place (the text only shrinks).
 fn replace(ids: &mut Vec<u32>, pattern: &[u32], letter: u32) {
-    let mut out = Vec::with_capacity(ids.len());
+    let mut kept = 0;
     let mut i = 0;
     while i < ids.len() {
-        if ids[i..].starts_with(pattern) {
-            out.push(letter);
+        if ids[i] == pattern[0] && ids[i + 1..].starts_with(&pattern[1..]) {
+            ids[kept] = letter;
             i += pattern.len();
         } else {
-            out.push(ids[i]);
+            ids[kept] = ids[i];
             i += 1;
         }
+        kept += 1;
     }
-    *ids = out;
+    ids.truncate(kept);
 }
 
 #[cfg(test)]

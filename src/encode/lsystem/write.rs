@@ -25,6 +25,7 @@
 
 use glam::DVec3;
 
+use super::decimal::{number_chars, rounding};
 use super::format::{Dimensions, Symbol};
 use super::generalise::TipPlan;
 use super::turtle::{Effect, TurtleState};
@@ -65,25 +66,15 @@ const F32_SLACK: f64 = 1.0 / (1u64 << 23) as f64;
 /// the reader will parse it; `value` itself when the interval is too narrow.
 pub(crate) fn shortest_within(value: f64, half_width: f64) -> f64 {
     (0..=MAX_DECIMALS)
-        .map(|k| rounded(value, k))
+        .map(|k| rounding(value, k).value)
         .find(|v| (v - value).abs() <= half_width)
         .unwrap_or(value)
 }
 
-/// `value` rounded to `decimals`, through its decimal text, exactly as the
-/// reader parses it.
-fn rounded(value: f64, decimals: usize) -> f64 {
-    format!("{value:.decimals$}")
-        .parse()
-        .expect("a formatted f64 parses")
-}
-
-/// Bytes a symbol with parameter `value` takes in the JSON document:
-/// `c(value)`, and a backslash is escaped as `\\`.
-fn json_cost(ch: u8, value: f64) -> usize {
-    let mut s = String::new();
-    super::format::push_number(&mut s, value);
-    s.len() + 3 + usize::from(ch == b'\\')
+/// Bytes a symbol with a parameter of `chars` printed characters takes in
+/// the JSON document: `c(value)`, and a backslash is escaped as `\\`.
+fn json_cost(ch: u8, chars: usize) -> usize {
+    chars + 3 + usize::from(ch == b'\\')
 }
 
 /// One way to print a quantity: the symbol (if any) and its cost in bytes.
@@ -102,12 +93,13 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
     }];
     let mut last = 0.0;
     for k in 0..=MAX_DECIMALS {
-        let v = rounded(angle_deg, k);
+        let rounded = rounding(angle_deg, k);
+        let v = rounded.value;
         if v != 0.0 && v != last {
             let ch = if v > 0.0 { positive } else { negative };
             out.push(Choice {
                 symbol: Some(Symbol::with(ch, v.abs())),
-                cost: json_cost(ch, v.abs()),
+                cost: json_cost(ch, rounded.magnitude_chars),
             });
             last = v;
         }
@@ -118,7 +110,7 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
     let ch = if angle_deg > 0.0 { positive } else { negative };
     out.push(Choice {
         symbol: Some(Symbol::with(ch, angle_deg.abs())),
-        cost: json_cost(ch, angle_deg.abs()),
+        cost: json_cost(ch, number_chars(angle_deg.abs())),
     });
     out
 }
@@ -128,11 +120,12 @@ fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
     let mut out: Vec<Choice> = Vec::new();
     let mut last = f64::NAN;
     for k in 0..=MAX_DECIMALS {
-        let v = rounded(length, k);
+        let rounded = rounding(length, k);
+        let v = rounded.value;
         if v != last {
             out.push(Choice {
                 symbol: Some(Symbol::with(b'F', v)),
-                cost: json_cost(b'F', v),
+                cost: json_cost(b'F', rounded.chars),
             });
             last = v;
         }
@@ -142,7 +135,7 @@ fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
     }
     out.push(Choice {
         symbol: Some(Symbol::with(b'F', length)),
-        cost: json_cost(b'F', length),
+        cost: json_cost(b'F', number_chars(length)),
     });
     out
 }
@@ -298,39 +291,156 @@ pub(crate) fn write_internode(
     };
     let mut lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
     lengths.extend(favoured.near(length / dims.unit_m, b'F', b'F', budget / dims.unit_m));
-    let mut combos: Vec<(usize, Choice, Choice, Choice)> = Vec::new();
-    for [turn, pitches] in &turns {
-        for &r in turn {
-            for &p in pitches {
-                for &f in &lengths {
-                    combos.push((r.cost + p.cost + f.cost, r, p, f));
-                }
+    let search = Search::new(&turns, &lengths);
+    // Many combinations share a turn and pitch: the turtle after them is
+    // computed once, by the same operations, so the result is unchanged.
+    let mut turned: Vec<u32> = vec![u32::MAX; search.triples];
+    let mut states: Vec<TurtleState> = Vec::new();
+    let mut simulate = |c: &Combo| {
+        if turned[c.pair] == u32::MAX {
+            let [turn, pitches] = &turns[c.way];
+            let mut t = *turtle;
+            for s in [turn[c.turn].symbol, pitches[c.pitch].symbol]
+                .into_iter()
+                .flatten()
+            {
+                t.apply(s, dims, true);
             }
+            turned[c.pair] = states.len() as u32;
+            states.push(t);
         }
-    }
-    combos.sort_by_key(|c| c.0);
-    let simulate = |(_, r, p, f): &(usize, Choice, Choice, Choice)| {
-        let mut t = *turtle;
-        for s in [r.symbol, p.symbol, f.symbol].into_iter().flatten() {
+        let mut t = states[turned[c.pair] as usize];
+        if let Some(s) = lengths[c.length].symbol {
             t.apply(s, dims, true);
         }
         (t, t.position.distance(target))
     };
-    let chosen = combos
-        .iter()
+    let chosen = search
         .find(|c| simulate(c).1 <= budget)
         // The finest roundings are nearly exact; should even they miss
         // (a tolerance of 0), the last, finest combination is the best.
-        .or(combos.last())
-        .expect("there is always at least one combination");
-    let (state, error) = simulate(chosen);
+        .unwrap_or_else(|| search.last());
+    let (state, error) = simulate(&chosen);
+    let [turn, pitches] = &turns[chosen.way];
     out.extend(
-        [chosen.1.symbol, chosen.2.symbol, chosen.3.symbol]
-            .into_iter()
-            .flatten(),
+        [
+            turn[chosen.turn].symbol,
+            pitches[chosen.pitch].symbol,
+            lengths[chosen.length].symbol,
+        ]
+        .into_iter()
+        .flatten(),
     );
     *turtle = state;
     error
+}
+
+/// One combination of a way to turn, its turn and pitch roundings and a
+/// length rounding, by indices into the choices.
+#[derive(Clone, Copy)]
+struct Combo {
+    way: usize,
+    turn: usize,
+    pitch: usize,
+    length: usize,
+    /// Index of the (way, turn, pitch) triple among all of them.
+    pair: usize,
+}
+
+/// The combinations of turns and lengths, cheapest in bytes first and, at
+/// equal cost, in the order of the nested loops (way, turn, pitch,
+/// length). Costs are a few dozen bytes, so the search goes through them
+/// cost by cost, without building and sorting every combination: the
+/// cheapest that fits is usually among the first few costs.
+struct Search<'c> {
+    turns: &'c [[Vec<Choice>; 2]],
+    /// Indices of the length choices of each cost.
+    lengths_by_cost: Vec<Vec<usize>>,
+    /// Number of (way, turn, pitch) triples.
+    triples: usize,
+}
+
+impl<'c> Search<'c> {
+    fn new(turns: &'c [[Vec<Choice>; 2]], lengths: &[Choice]) -> Self {
+        let max_length_cost = lengths.iter().map(|f| f.cost).max().unwrap_or(0);
+        let mut lengths_by_cost = vec![Vec::new(); max_length_cost + 1];
+        for (i, f) in lengths.iter().enumerate() {
+            lengths_by_cost[f.cost].push(i);
+        }
+        let triples = turns.iter().map(|[t, p]| t.len() * p.len()).sum();
+        Self {
+            turns,
+            lengths_by_cost,
+            triples,
+        }
+    }
+
+    /// Every (way, turn, pitch) triple, in loop order, with its cost.
+    fn triples(&self) -> impl Iterator<Item = (usize, Combo)> + '_ {
+        let mut pair = 0;
+        self.turns
+            .iter()
+            .enumerate()
+            .flat_map(|(way, [turn, pitches])| {
+                turn.iter().enumerate().flat_map(move |(ti, r)| {
+                    pitches
+                        .iter()
+                        .enumerate()
+                        .map(move |(pi, p)| (r.cost + p.cost, (way, ti, pi)))
+                })
+            })
+            .map(move |(cost, (way, turn, pitch))| {
+                pair += 1;
+                let combo = Combo {
+                    way,
+                    turn,
+                    pitch,
+                    length: 0,
+                    pair: pair - 1,
+                };
+                (cost, combo)
+            })
+    }
+
+    /// The combinations of total cost `cost`, in loop order.
+    fn at_cost(&self, cost: usize) -> impl Iterator<Item = Combo> + '_ {
+        self.triples().flat_map(move |(turn_cost, combo)| {
+            let lengths = cost
+                .checked_sub(turn_cost)
+                .and_then(|rest| self.lengths_by_cost.get(rest))
+                .map_or(&[][..], Vec::as_slice);
+            lengths.iter().map(move |&length| Combo { length, ..combo })
+        })
+    }
+
+    /// Cheapest and dearest total costs.
+    fn cost_range(&self) -> (usize, usize) {
+        let (min_turn, max_turn) = self
+            .triples()
+            .fold((usize::MAX, 0), |(lo, hi), (c, _)| (lo.min(c), hi.max(c)));
+        let min_length = self
+            .lengths_by_cost
+            .iter()
+            .position(|l| !l.is_empty())
+            .unwrap_or(0);
+        (
+            min_turn + min_length,
+            max_turn + self.lengths_by_cost.len() - 1,
+        )
+    }
+
+    /// The cheapest combination (first in loop order) that `fits`.
+    fn find(&self, mut fits: impl FnMut(&Combo) -> bool) -> Option<Combo> {
+        let (cheapest, dearest) = self.cost_range();
+        (cheapest..=dearest).find_map(|cost| self.at_cost(cost).find(|c| fits(c)))
+    }
+
+    /// The most expensive combination, last in loop order.
+    fn last(&self) -> Combo {
+        self.at_cost(self.cost_range().1)
+            .last()
+            .expect("there is always at least one combination")
+    }
 }
 
 /// Appends `!(w)` if the decoded width is further than the radius budget
