@@ -17,6 +17,9 @@ const DEFAULT_MAX_CONCURRENT: usize = 1024;
 const DEFAULT_DB_CONNECTIONS: u32 = 16;
 const DEFAULT_LEASE_SECS: u64 = 30;
 const DEFAULT_CACHE_BYTES: usize = 256 * 1024 * 1024;
+/// Default job time limit: 15 minutes, many times what a 20-million-point
+/// scan takes.
+const DEFAULT_JOB_TIME_LIMIT_SECS: f64 = 900.0;
 
 /// How `silva serve` runs. Every flag can also be set by its environment
 /// variable; flags win.
@@ -65,6 +68,18 @@ pub struct Config {
     /// may take it over.
     #[arg(long, env = "SILVA_JOB_LEASE_SECS", default_value_t = DEFAULT_LEASE_SECS)]
     pub job_lease_secs: u64,
+    /// Longest a reconstruction job may run, in seconds, from its claim by a
+    /// worker (0: no limit). Past it the job fails with an explanation and
+    /// the worker takes the next job; the limit is checked between the
+    /// job's stages, so the stage running then (reading, reconstruction,
+    /// encoding) ends in the background and its result is dropped.
+    #[arg(
+        long,
+        env = "SILVA_JOB_TIME_LIMIT_SECS",
+        default_value_t = DEFAULT_JOB_TIME_LIMIT_SECS,
+        value_parser = seconds
+    )]
+    pub job_time_limit_secs: f64,
     /// Bytes of generated meshes and documents kept in memory for downloads.
     #[arg(long, env = "SILVA_CACHE_BYTES", default_value_t = DEFAULT_CACHE_BYTES)]
     pub cache_bytes: usize,
@@ -86,6 +101,7 @@ impl Config {
             workers: None,
             db_max_connections: DEFAULT_DB_CONNECTIONS,
             job_lease_secs: DEFAULT_LEASE_SECS,
+            job_time_limit_secs: DEFAULT_JOB_TIME_LIMIT_SECS,
             cache_bytes: DEFAULT_CACHE_BYTES,
         }
     }
@@ -95,10 +111,28 @@ impl Config {
         Duration::from_secs(self.request_timeout_secs.max(1))
     }
 
+    /// The job time limit; `None` for 0 (or one too long to represent):
+    /// no limit.
+    pub fn job_time_limit(&self) -> Option<Duration> {
+        (self.job_time_limit_secs > 0.0)
+            .then(|| Duration::try_from_secs_f64(self.job_time_limit_secs).ok())
+            .flatten()
+    }
+
     /// Worker count, the CPU count unless set.
     pub fn worker_count(&self) -> usize {
         self.workers.unwrap_or_else(|| {
             std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
         })
+    }
+}
+
+/// Parses a non-negative, finite number of seconds.
+fn seconds(text: &str) -> Result<f64, String> {
+    let secs: f64 = text.parse().map_err(|e| format!("{e}"))?;
+    if secs.is_finite() && secs >= 0.0 {
+        Ok(secs)
+    } else {
+        Err("expected a finite number of seconds, 0 or more".into())
     }
 }

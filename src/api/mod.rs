@@ -161,6 +161,7 @@ impl Server {
                 poll_interval: Duration::from_millis(500),
                 max_attempts: 3,
                 max_points: state.config.max_points,
+                time_limit: state.config.job_time_limit(),
             },
             state.events.clone(),
             state.metrics.jobs.clone(),

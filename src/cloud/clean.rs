@@ -1,5 +1,5 @@
 //! Clean-up passes run before reconstruction: near-duplicate removal,
-//! statistical outlier removal and voxel downsampling.
+//! statistical outlier removal, stray-return removal and voxel downsampling.
 //!
 //! AdTree (Du et al. 2019, §3.1) removes points closer than 0.001 × the
 //! bounding-box diagonal before building its Delaunay graph, because
@@ -114,6 +114,112 @@ fn mean_neighbour_distance(index: &PointIndex, i: usize, p: Vec3, k: usize) -> f
         .map(|(_, n)| f64::from(n.distance_sq).sqrt())
         .sum();
     sum / k as f64
+}
+
+/// Returns dropped by [`remove_stray_returns`], by where they lay.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Strays {
+    /// Above the kept points, across a gap in height.
+    pub above: usize,
+    /// Below the kept points, across a gap in height.
+    pub below: usize,
+    /// Beside the kept points, across a horizontal gap.
+    pub beside: usize,
+}
+
+impl Strays {
+    /// All dropped returns.
+    pub fn total(&self) -> usize {
+        self.above + self.below + self.beside
+    }
+}
+
+/// Drops a handful of returns isolated from the rest of the cloud: birds,
+/// atmospheric noise, corrupt records far above, below or beside a tree.
+///
+/// This is the radius outlier test (a return with no neighbour within
+/// `gap_m` is noise; "distant singular points or small clusters were
+/// disallowed", multi-temporal-tree-growth §3.1.3; clusters of "only 1–3
+/// points" are noise, airborne-lidar-tree-modeling §6.2) in a form that
+/// costs one pass per axis on ordinary clouds: a gap wider than `gap_m`
+/// between consecutive coordinates along z, x or y splits the cloud into
+/// slabs whose points are all more than `gap_m` apart. The most populous
+/// slab is the tree; the others go when they hold at most `max_share` of
+/// the points (at least one point) in all. Gaps are looked for along z,
+/// x, y and again until none is left; an axis along which the points span
+/// no more than `gap_m` is skipped without sorting.
+///
+/// `None` when nothing was dropped, so that callers keep the cloud as it
+/// is. The points must be finite.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::remove_stray_returns;
+///
+/// let mut pts: Vec<Vec3> = (0..200).map(|i| Vec3::new(0.0, 0.01 * i as f32, 0.05 * i as f32)).collect();
+/// pts.push(Vec3::new(0.0, 0.0, 300.0)); // a bird
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts);
+/// let (clean, strays) = remove_stray_returns(&cloud, 30.0, 0.01).unwrap();
+/// assert_eq!((clean.len(), strays.above), (200, 1));
+/// ```
+pub fn remove_stray_returns(
+    cloud: &PointCloud,
+    gap_m: f32,
+    max_share: f32,
+) -> Option<(PointCloud, Strays)> {
+    let limit = ((cloud.len() as f32 * max_share) as usize).max(1);
+    let mut kept = vec![true; cloud.len()];
+    let mut strays = Strays::default();
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for axis in [2, 0, 1] {
+            let value = |i: usize| cloud.points[i][axis];
+            let Some((lo, hi)) = main_slab(cloud.len(), &kept, value, gap_m) else {
+                continue;
+            };
+            let outside: Vec<usize> = (0..cloud.len())
+                .filter(|&i| kept[i] && !(lo..=hi).contains(&value(i)))
+                .collect();
+            let below = outside.iter().filter(|&&i| value(i) < lo).count();
+            let above = outside.len() - below;
+            if outside.is_empty() || strays.total() + outside.len() > limit {
+                continue;
+            }
+            outside.iter().for_each(|&i| kept[i] = false);
+            if axis == 2 {
+                strays.below += below;
+                strays.above += above;
+            } else {
+                strays.beside += below + above;
+            }
+            changed = true;
+        }
+    }
+    (strays.total() > 0).then(|| (cloud.retain_indices(|i| kept[i]), strays))
+}
+
+/// The coordinate range of the most populous slab of the kept points
+/// between gaps wider than `gap_m` along one axis; `None` without such gaps.
+fn main_slab(
+    len: usize,
+    kept: &[bool],
+    value: impl Fn(usize) -> f32,
+    gap_m: f32,
+) -> Option<(f32, f32)> {
+    let values = || (0..len).filter(|&i| kept[i]).map(&value);
+    let (min, max) = values().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    });
+    if max - min <= gap_m {
+        return None;
+    }
+    let mut sorted: Vec<f32> = values().collect();
+    sorted.sort_unstable_by(f32::total_cmp);
+    let slabs = sorted.chunk_by(|a, b| b - a <= gap_m);
+    let main = slabs.max_by_key(|slab| slab.len())?;
+    (main.len() < sorted.len()).then(|| (main[0], main[main.len() - 1]))
 }
 
 /// Keeps one point per cubic voxel of edge `voxel_m`: the point nearest the
@@ -239,5 +345,57 @@ mod tests {
         pts.push(Vec3::new(0.0, 0.0, 50.0));
         let out = remove_statistical_outliers(&cloud(pts), 6, 1.0);
         assert_eq!(out.len(), 100);
+    }
+
+    /// A column of 1000 points 20 m tall, 2 m wide.
+    fn column() -> Vec<Vec3> {
+        (0..1000)
+            .map(|i| {
+                let a = i as f32 * 2.4;
+                Vec3::new(a.cos(), a.sin(), 0.02 * i as f32)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn stray_returns_far_above_below_and_beside_are_dropped_with_their_attributes() {
+        let mut pts = column();
+        pts.push(Vec3::new(0.0, 0.0, 99_000.0));
+        pts.push(Vec3::new(0.0, 0.0, -500.0));
+        pts.push(Vec3::new(300.0, 0.0, 5.0));
+        pts.push(Vec3::new(0.0, -99_000.0, 5.0));
+        let (out, strays) = remove_stray_returns(&cloud(pts), 30.0, 0.01).unwrap();
+        let expected = Strays {
+            above: 1,
+            below: 1,
+            beside: 2,
+        };
+        assert_eq!(strays, expected);
+        assert_eq!(out.points, column());
+        let classes = out.classification.unwrap();
+        assert_eq!(classes, (0..1000).map(|i| i as u8).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn only_a_handful_beyond_a_wide_gap_is_dropped() {
+        // 40 m of points every metre: wider than the gap, but no gap.
+        let mut pts = column();
+        pts.extend((0..40).map(|i| Vec3::new(i as f32, 0.0, 0.0)));
+        assert_eq!(remove_stray_returns(&cloud(pts.clone()), 30.0, 0.01), None);
+        // A point 29 m above the top is near enough.
+        pts.push(Vec3::new(0.0, 0.0, 20.0 + 29.0));
+        assert_eq!(remove_stray_returns(&cloud(pts), 30.0, 0.01), None);
+        // Two equal trees far apart, and a cluster of 2 % beside one tree.
+        let mut two = column();
+        two.extend(column().iter().map(|p| *p + Vec3::new(99_000.0, 0.0, 0.0)));
+        assert_eq!(remove_stray_returns(&cloud(two), 30.0, 0.01), None);
+        let mut cluster = column();
+        cluster.extend((0..20).map(|i| Vec3::new(100.0, 0.0, i as f32 * 0.1)));
+        assert_eq!(
+            remove_stray_returns(&cloud(cluster.clone()), 30.0, 0.01),
+            None
+        );
+        let (out, strays) = remove_stray_returns(&cloud(cluster), 30.0, 0.02).unwrap();
+        assert_eq!((out.len(), strays.beside), (1000, 20));
     }
 }

@@ -9,9 +9,11 @@
 //! number of workers bounds how many reconstructions run at once. While it
 //! runs, the worker renews the lease; when the lease is lost (the job was
 //! deleted or reclaimed) the result is discarded rather than stored twice.
+//! A job that runs past [`WorkerConfig::time_limit`] fails with
+//! [`JobError::TimedOut`], and its worker takes the next job (see
+//! [`progress`] for what the limit does and does not bound).
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use prometheus::{HistogramOpts, HistogramVec, IntCounterVec, Opts, Registry};
@@ -22,8 +24,10 @@ use uuid::Uuid;
 use crate::store::{JobRow, Store};
 
 mod process;
+pub mod progress;
 
 pub use process::{JobError, JobOptions, PreparedScan, prepare_scan, process};
+pub use progress::{Progress, Stage};
 
 /// How the worker pool runs.
 #[derive(Debug, Clone)]
@@ -38,6 +42,9 @@ pub struct WorkerConfig {
     pub max_attempts: u32,
     /// Point limit for reading stored scans.
     pub max_points: usize,
+    /// Longest a job may run from its claim (`None`: no limit); past it
+    /// the job fails with [`JobError::TimedOut`].
+    pub time_limit: Option<Duration>,
 }
 
 /// Signals between the API and the workers of one process.
@@ -112,23 +119,6 @@ impl JobMetrics {
         self.duration
             .with_label_values(&[kind, outcome])
             .observe(elapsed.as_secs_f64());
-    }
-}
-
-/// Progress of the running step, shared with the heartbeat (an `f32` in bits).
-#[derive(Debug, Default, Clone)]
-pub struct Progress(Arc<AtomicU32>);
-
-impl Progress {
-    /// Records progress in `0..=1`.
-    pub fn set(&self, fraction: f32) {
-        self.0
-            .store(fraction.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
-    }
-
-    /// The last recorded progress.
-    pub fn get(&self) -> f32 {
-        f32::from_bits(self.0.load(Ordering::Relaxed))
     }
 }
 
@@ -236,6 +226,14 @@ impl Worker {
                         .await
                 }
             },
+            Err(err @ JobError::TimedOut { .. }) => {
+                tracing::warn!(job = %job.id, error = %err, "job timed out; its running stage \
+                     ends in the background and its result is dropped");
+                match self.fail(&job, &err.to_string()).await {
+                    "failed" => "timed_out",
+                    other => other,
+                }
+            }
             Err(err) => self.fail(&job, &err.to_string()).await,
         };
         let elapsed = started.elapsed();
@@ -257,8 +255,9 @@ impl Worker {
     }
 
     /// Loads the scan and runs [`process`] off the runtime, renewing the
-    /// lease until it returns.
+    /// lease until it returns or the job's time limit passes.
     async fn run_step(&self, job: &JobRow) -> Result<crate::store::NewModel, JobError> {
+        let progress = Progress::with_limit(self.config.time_limit);
         let options: JobOptions =
             serde_json::from_str(&job.options).map_err(|e| JobError::Options(e.to_string()))?;
         let cloud_laz = self
@@ -267,7 +266,6 @@ impl Worker {
             .await
             .map_err(|e| JobError::Store(e.to_string()))?
             .ok_or(JobError::ScanMissing)?;
-        let progress = Progress::default();
         let step_progress = progress.clone();
         let max_points = self.config.max_points;
         let mut step = tokio::task::spawn_blocking(move || {
@@ -275,11 +273,21 @@ impl Worker {
         });
         let mut beat = tokio::time::interval(self.config.lease / 3);
         beat.tick().await;
+        let expiry = async {
+            match progress.deadline() {
+                Some(deadline) => tokio::time::sleep_until(deadline.into()).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::pin!(expiry);
         loop {
             tokio::select! {
                 joined = &mut step => {
                     return joined.map_err(|e| JobError::Panicked(e.to_string()))?;
                 }
+                // The step stops at its next stage boundary (or already
+                // has); the worker does not wait for it.
+                () = &mut expiry => return Err(progress.timed_out()),
                 _ = beat.tick() => {
                     let held = self.store
                         .heartbeat(job.id, &self.owner, self.config.lease, f64::from(progress.get()))

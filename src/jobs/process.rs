@@ -9,7 +9,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::Progress;
+use super::{Progress, Stage};
 use crate::cloud::{self, CloudError, ReadOptions};
 use crate::encode::chaincode::{self, ChainError, ChainOptions};
 use crate::encode::lsystem::{self, LsOptions};
@@ -52,6 +52,17 @@ pub enum JobError {
     /// Another worker took the job over (this one was presumed dead).
     #[error("the job's lease was lost to another worker")]
     LeaseLost,
+    /// The job ran past its time limit and was stopped.
+    #[error(
+        "stopped during {stage}: the job ran past its time limit of {limit_s} s (silva serve \
+         --job-time-limit-secs); try a smaller or cleaner cloud, or ask for a longer limit"
+    )]
+    TimedOut {
+        /// The limit, in seconds.
+        limit_s: f64,
+        /// What the job was doing at its deadline ([`Stage::name`]).
+        stage: &'static str,
+    },
     /// The processing step panicked; a bug, reported rather than hidden.
     #[error("processing panicked: {0}")]
     Panicked(String),
@@ -84,21 +95,24 @@ pub fn prepare_scan(bytes: &[u8], max_points: usize) -> Result<PreparedScan, Clo
 
 /// Reconstructs the tree in a stored scan and encodes it: the skeleton JSON,
 /// LsJSON and compressed chain code, with their parameters and error bounds,
-/// the tree metrics and the trunk base location.
+/// the tree metrics and the trunk base location. Stops with
+/// [`JobError::TimedOut`] at the first stage boundary past the deadline of
+/// `progress`.
 pub fn process(
     cloud_laz: &[u8],
     options: &JobOptions,
     max_points: usize,
     progress: &Progress,
 ) -> Result<NewModel, JobError> {
+    progress.enter(Stage::Reading)?;
     let (cloud, _) = cloud::read_bytes(cloud_laz, &ReadOptions { max_points })?;
-    progress.set(0.1);
+    progress.enter(Stage::Reconstructing)?;
     let reconstruct_options = reconstruct::Options {
         mode: options.mode,
         ..reconstruct::Options::default()
     };
     let tree = reconstruct::reconstruct(&cloud, &reconstruct_options)?;
-    progress.set(0.8);
+    progress.enter(Stage::EncodingLsystem)?;
     let mut skeleton = tree.skeleton;
     if options.crs.is_some() {
         let mut anchor = skeleton.anchor().clone();
@@ -107,9 +121,10 @@ pub fn process(
     }
     let ls_options = LsOptions::default();
     let lsjson = lsystem::encode(&skeleton, &ls_options);
-    progress.set(0.9);
+    progress.enter(Stage::EncodingChainCode)?;
     let chain_options = ChainOptions::default();
     let chain = chaincode::encode(&skeleton, &chain_options)?;
+    progress.enter(Stage::Finishing)?;
     let parameters = serde_json::json!({
         "mode": tree.mode.name(),
         "mode_reason": tree.mode_reason,
@@ -139,4 +154,41 @@ pub fn process(
         crs: skeleton.anchor().crs.clone(),
         height_m: f64::from(tree.metrics.height_m),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use glam::Vec3;
+
+    use super::*;
+
+    #[test]
+    fn a_job_past_its_deadline_stops_at_the_next_stage() {
+        // A stem 3 m tall: a few hundred milliseconds of work.
+        let points = (0..3000)
+            .map(|i| {
+                let a = i as f32 * 2.399_963;
+                Vec3::new(0.1 * a.cos(), 0.1 * a.sin(), 3.0 * i as f32 / 3000.0)
+            })
+            .collect();
+        let laz =
+            cloud::to_laz_bytes(&cloud::PointCloud::from_points(DVec3::ZERO, points)).unwrap();
+        let options = JobOptions::default();
+        let late = Progress::with_limit(Some(Duration::ZERO));
+        let err = process(&laz, &options, 10_000, &late).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                JobError::TimedOut {
+                    stage: "reading the scan",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let model = process(&laz, &options, 10_000, &Progress::default()).unwrap();
+        assert!(model.internodes > 0);
+    }
 }

@@ -39,6 +39,18 @@ pub enum ReconstructError {
         /// The limit, [`super::MAX_TREE_HEIGHT_M`].
         max_m: f32,
     },
+    /// The points span more ground than any tree's crown.
+    #[error(
+        "the points span {width_m:.0} m horizontally, more than any tree ({max_m:.0} m at most): \
+         the cloud holds several trees or far-off returns (split it into one tree per file), or \
+         x and y are not in metres"
+    )]
+    TooWide {
+        /// Larger side of the points' horizontal bounding box, in metres.
+        width_m: f32,
+        /// The limit, [`super::MAX_TREE_WIDTH_M`].
+        max_m: f32,
+    },
     /// Ground removal left too few points for a tree.
     #[error(
         "only {tree} points above the ground ({ground} ground points); at least {needed} needed \

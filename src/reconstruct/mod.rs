@@ -3,7 +3,9 @@
 //! [`reconstruct`] turns the point cloud of one tree into a [`Skeleton`] with
 //! radii and [`metrics::TreeMetrics`]:
 //!
-//! 1. validate the input (enough points, not on one line or plane);
+//! 1. drop a handful of stray returns far from the rest (birds, noise; see
+//!    [`STRAY_GAP_M`]) and validate the input (enough points, no wider than
+//!    [`MAX_TREE_WIDTH_M`], not on one line or plane);
 //! 2. choose a pipeline ([`Mode::Auto`] looks at point density and trunk
 //!    coverage, see [`survey`]);
 //! 3. build the skeleton: the dense pipeline after AdTree
@@ -22,6 +24,7 @@ use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::cloud::PointCloud;
+use crate::cloud::clean::{self, Strays};
 use crate::skeleton::Skeleton;
 
 pub mod airborne;
@@ -40,6 +43,22 @@ pub const MIN_POINTS: usize = 10;
 /// tallest measured trees (coast redwoods, mountain ash) stand 116–132 m;
 /// the rest is room for sloping ground in the clip.
 pub const MAX_TREE_HEIGHT_M: f32 = 200.0;
+
+/// Most horizontal extent, in metres, that the points of one tree may span
+/// (the larger side of their bounding box). The widest single crowns
+/// spread 60–80 m; the rest is room for the clip's margins.
+pub const MAX_TREE_WIDTH_M: f32 = 200.0;
+
+/// Returns with no neighbour within this many metres of the rest of the
+/// cloud are strays ([`crate::cloud::clean::remove_stray_returns`]) when
+/// there are only a handful of them: more than any gap inside one tree,
+/// from its ground to its crown base, yet birds and atmospheric noise
+/// usually lie farther off.
+pub const STRAY_GAP_M: f32 = 30.0;
+
+/// Largest share of the points that may be dropped as strays (at least
+/// one point): a bigger detached part is a second object, not noise.
+pub const MAX_STRAY_SHARE: f32 = 0.01;
 
 /// Which reconstruction pipeline to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -153,13 +172,16 @@ pub struct Reconstruction {
 /// assert!((tree.skeleton.anchor().origin.x - 155_000.0).abs() < 0.02);
 /// ```
 pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction, ReconstructError> {
+    check_points(cloud)?;
+    let cleaned = clean::remove_stray_returns(cloud, STRAY_GAP_M, MAX_STRAY_SHARE);
+    let cloud = cleaned.as_ref().map_or(cloud, |(kept, _)| kept);
     validate(cloud)?;
     let (mode, mode_reason) = match opts.mode {
         Mode::Auto => survey(cloud).choose(&opts.auto),
         Mode::Dense => (Mode::Dense, "requested on the command line".to_string()),
         Mode::Airborne => (Mode::Airborne, "requested on the command line".to_string()),
     };
-    let (mut skeleton, tree_cloud, mut notes) = match mode {
+    let (mut skeleton, tree_cloud, pipeline_notes) = match mode {
         Mode::Dense | Mode::Auto => {
             let out = dense::reconstruct(cloud, &opts.dense)?;
             (out.skeleton, out.cloud, out.notes)
@@ -175,6 +197,11 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
             (out.skeleton, tree, out.notes)
         }
     };
+    let mut notes: Vec<String> = cleaned
+        .map(|(_, strays)| strays_note(strays))
+        .into_iter()
+        .collect();
+    notes.extend(pipeline_notes);
     let mut crown = metrics::Crown::measure(&skeleton, &tree_cloud);
     if mode == Mode::Airborne {
         // A sparse scan from above rarely hits the apex itself.
@@ -203,20 +230,32 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     })
 }
 
+/// What [`reconstruct`] says about the strays it dropped.
+fn strays_note(strays: Strays) -> String {
+    let places: Vec<String> = [
+        (strays.above, "above"),
+        (strays.below, "below"),
+        (strays.beside, "beside"),
+    ]
+    .iter()
+    .filter(|(n, _)| *n > 0)
+    .map(|(n, place)| format!("{n} {place}"))
+    .collect();
+    let total = strays.total();
+    let returns = if total == 1 { "return" } else { "returns" };
+    format!(
+        "{total} stray {returns} ignored ({} the tree): no other point within \
+         {STRAY_GAP_M:.0} m (birds, atmospheric noise or corrupt records)",
+        places.join(", ")
+    )
+}
+
 /// Rejects clouds no pipeline can turn into a tree: too few or non-finite
-/// points, or points on one line or one plane.
+/// points, points spanning more than [`MAX_TREE_WIDTH_M`] horizontally, or
+/// points on one line or one plane.
 pub fn validate(cloud: &PointCloud) -> Result<(), ReconstructError> {
-    if cloud.len() < MIN_POINTS {
-        return Err(ReconstructError::TooFewPoints {
-            found: cloud.len(),
-            needed: MIN_POINTS,
-        });
-    }
-    if !cloud.points.iter().all(|p| p.is_finite()) || !cloud.offset.is_finite() {
-        return Err(ReconstructError::Degenerate(
-            "the cloud has non-finite coordinates".into(),
-        ));
-    }
+    check_points(cloud)?;
+    check_width(&cloud.points)?;
     let spread = principal_spreads(&cloud.points);
     // Spreads are standard deviations along the principal axes, largest
     // first. A real tree is never thinner than a millimetre per 10 m.
@@ -232,6 +271,40 @@ pub fn validate(cloud: &PointCloud) -> Result<(), ReconstructError> {
         return Err(ReconstructError::Degenerate(
             "all points lie on one plane".into(),
         ));
+    }
+    Ok(())
+}
+
+/// Rejects too few or non-finite points.
+fn check_points(cloud: &PointCloud) -> Result<(), ReconstructError> {
+    if cloud.len() < MIN_POINTS {
+        return Err(ReconstructError::TooFewPoints {
+            found: cloud.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    if !cloud.points.iter().all(|p| p.is_finite()) || !cloud.offset.is_finite() {
+        return Err(ReconstructError::Degenerate(
+            "the cloud has non-finite coordinates".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Rejects points spanning more than [`MAX_TREE_WIDTH_M`] horizontally: two
+/// trees 99 km apart were "all points on one line" (their principal axes
+/// are), which misled (found by `tools/hostile_uploads.py`).
+fn check_width(points: &[Vec3]) -> Result<(), ReconstructError> {
+    let (lo, hi) = points.iter().fold(
+        (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY),
+        |(lo, hi), p| (lo.min(p.truncate()), hi.max(p.truncate())),
+    );
+    let width_m = (hi - lo).max_element();
+    if width_m > MAX_TREE_WIDTH_M {
+        return Err(ReconstructError::TooWide {
+            width_m,
+            max_m: MAX_TREE_WIDTH_M,
+        });
     }
     Ok(())
 }
@@ -525,6 +598,59 @@ fn sampled_spacing(points: &[Vec3]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A vertical stem of radius 10 cm, `height` m tall, sampled on its bark.
+    fn stem(height: f32) -> Vec<Vec3> {
+        (0..3000)
+            .map(|i| {
+                let a = i as f32 * 2.399_963;
+                Vec3::new(0.1 * a.cos(), 0.1 * a.sin(), height * i as f32 / 3000.0)
+            })
+            .collect()
+    }
+
+    fn dense(points: Vec<Vec3>) -> Result<Reconstruction, ReconstructError> {
+        let cloud = PointCloud::from_points(DVec3::new(155_000.0, 463_000.0, 0.0), points);
+        let options = Options {
+            mode: Mode::Dense,
+            ..Options::default()
+        };
+        reconstruct(&cloud, &options)
+    }
+
+    #[test]
+    fn stray_returns_kilometres_away_are_dropped_with_a_note() {
+        let clean = dense(stem(3.0)).unwrap();
+        let mut points = stem(3.0);
+        points.push(Vec3::new(0.0, 0.0, 99_000.0));
+        points.push(Vec3::new(-5_000.0, 0.0, 1.0));
+        let tree = dense(points).unwrap();
+        assert_eq!(tree.metrics, clean.metrics);
+        let note = &tree.notes[0];
+        assert!(
+            note.starts_with("2 stray returns ignored (1 above, 1 beside the tree)"),
+            "{note}"
+        );
+        assert_eq!(tree.notes[1..], clean.notes[..]);
+    }
+
+    #[test]
+    fn a_tree_too_tall_or_too_wide_is_refused_not_trimmed() {
+        let err = dense(stem(250.0)).unwrap_err();
+        assert!(matches!(err, ReconstructError::TooTall { .. }), "{err}");
+        let mut two = stem(3.0);
+        two.extend(
+            stem(3.0)
+                .iter()
+                .map(|p| *p + Vec3::new(99_000.0, 99_000.0, 0.0)),
+        );
+        let err = dense(two).unwrap_err();
+        assert!(
+            matches!(err, ReconstructError::TooWide { width_m, max_m: MAX_TREE_WIDTH_M } if width_m > 98_000.0),
+            "{err}"
+        );
+        assert!(err.to_string().contains("horizontally"), "{err}");
+    }
 
     #[test]
     fn a_huge_clouds_unsampled_spacing_is_named_not_printed_as_nan() {
