@@ -239,6 +239,10 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| r.truth.as_ref().map(|t| pct(t.recall)),
         },
         Column {
+            header: "vis_rec%",
+            cell: |r| r.truth.as_ref().map(|t| pct(t.visible_recall)),
+        },
+        Column {
             header: "prec%",
             cell: |r| r.truth.as_ref().map(|t| pct(t.precision)),
         },

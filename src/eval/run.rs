@@ -51,6 +51,12 @@ pub struct TruthFigures {
     pub recall: f32,
     /// Share of the reconstructed length near the truth.
     pub precision: f32,
+    /// Recall over the truth a scan can see: truth inside thicker truth
+    /// wood left out (`compare::SkeletonComparison::visible_recall`). A
+    /// diagnostic; `recall` is the figure of record.
+    pub visible_recall: f32,
+    /// Share of the radius-filtered truth length inside thicker truth wood.
+    pub hidden_share: f32,
     /// Mean symmetric skeleton distance, in metres.
     pub mean_distance_m: f32,
     /// 95th percentile of the symmetric skeleton distance, in metres.
@@ -292,6 +298,8 @@ fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> 
         min_truth_radius_m: opts.min_truth_radius_m,
         recall: c.recall,
         precision: c.precision,
+        visible_recall: c.visible_recall,
+        hidden_share: c.hidden_share,
         mean_distance_m: c.mean_distance_m,
         p95_distance_m: c.p95_distance_m,
         height_error_m: rec.metrics.height_m

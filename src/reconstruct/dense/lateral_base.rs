@@ -322,7 +322,7 @@ fn split_node(skeleton: &Skeleton, from: NodeId, to: NodeId, t: f32) -> Node {
 /// A skeleton from `nodes` whose parents may come after them (the split
 /// nodes are appended): renumbered depth-first, children in their previous
 /// order, a split node taking its internode's place in the stem's order.
-fn in_parent_order(skeleton: &Skeleton, nodes: Vec<Node>) -> Skeleton {
+pub(super) fn in_parent_order(skeleton: &Skeleton, nodes: Vec<Node>) -> Skeleton {
     let mut children: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
     // Visit original children in their order, then the new nodes, so that a
     // lateral's slot does not jump ahead of the stem's main extension.

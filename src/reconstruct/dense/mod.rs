@@ -32,7 +32,10 @@
 //! 5. `lateral_base`: laterals of thick stems extended back along their
 //!    initial direction to the stem's axis, where the truth (and a QSM)
 //!    starts them, rather than joined across the wood from the bark;
-//! 6. `tips`: each tip moved from its last section's centroid to the
+//! 6. `twins`: a twig that the stem reached more than once (pieces along
+//!    the bark, each joined across the wood) joined to the stem once, its
+//!    other pieces hanging from their twins;
+//! 7. `tips`: each tip moved from its last section's centroid to the
 //!    scan's last point ahead of it, and each twig on by the median gap
 //!    between a twig's last scanned point and its end.
 //!
@@ -52,6 +55,7 @@ mod lateral_base;
 mod simplify;
 mod skeletonize;
 mod tips;
+mod twins;
 
 pub(crate) use simplify::point_segment_distance;
 
@@ -173,6 +177,12 @@ pub struct Params {
     /// A lateral's base moves only when the line back along its initial
     /// direction passes the stem's axis within this many stem spreads.
     pub lateral_miss_spreads: f32,
+    /// A lateral of a thick stem whose join turns into it (see `twins`)
+    /// hangs from the nearest thin node of another branch within this many
+    /// bin widths of its first node instead (0: off)…
+    pub twin_gap_bins: f32,
+    /// …when its join turns by at least this angle, in degrees.
+    pub twin_min_turn_deg: f32,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
@@ -263,6 +273,8 @@ impl Default for Params {
             lateral_direction_bins: 4.0,
             lateral_max_drop_spreads: 4.0,
             lateral_miss_spreads: 1.0,
+            twin_gap_bins: 3.0,
+            twin_min_turn_deg: 30.0,
             smoothing_rounds: 3,
             thin_smoothing_rounds: 0,
             thin_smoothing_reach_bins: 1.0,
@@ -276,6 +288,10 @@ impl Default for Params {
         }
     }
 }
+
+/// The twin a lateral moves to lies within this share of its join's length
+/// (see `twins`).
+const TWIN_GAP_SHARE: f32 = 0.5;
 
 /// The dense pipeline's result, before radii.
 #[derive(Debug, Clone)]
@@ -404,7 +420,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         params.simplify_spreads,
     );
     skeleton.order_main_extension_first();
-    let mut skeleton = lateral_base::to_parent_axis(
+    let skeleton = lateral_base::to_parent_axis(
         &skeleton,
         &lateral_base::BaseRule {
             thick_spread_m: params.lateral_base_spread_bins * bin_m,
@@ -413,6 +429,15 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             max_drop_spreads: params.lateral_max_drop_spreads,
             max_miss_spreads: params.lateral_miss_spreads,
             snap_m: bin_m,
+        },
+    );
+    let mut skeleton = twins::rejoin_twins(
+        &skeleton,
+        &twins::TwinRule {
+            thick_spread_m: params.lateral_base_spread_bins * bin_m,
+            max_gap_m: params.twin_gap_bins * bin_m,
+            max_gap_share: TWIN_GAP_SHARE,
+            min_turn_deg: params.twin_min_turn_deg,
         },
     );
     skeleton.order_main_extension_first();

@@ -214,37 +214,8 @@ fn join_thick_rings(
         return;
     }
     let mut split = split_off_outside(graph, &outside, opts.max_link_m, &mut wide, &mut joined);
-    rejoin_wide_pieces(points, &outside, &first, &mut wide, &mut split);
     rejoin_dead_ends(dist, pred, &outside, &first, &mut wide, &mut split);
     *uf = split;
-}
-
-/// Widest (RMS spread, metres) group of outside points that stays apart
-/// from its ring as a twig. Wider groups are the first arc of a thick limb
-/// leaving its stem: their centroid lies on the limb's bark, so they stay in
-/// the ring until the limb parts as a whole.
-const TWIG_MAX_SPREAD_M: f32 = 0.03;
-
-/// Puts groups of outside points wider than [`TWIG_MAX_SPREAD_M`] back into
-/// their ring, whose first member is `first[ring]`.
-fn rejoin_wide_pieces(
-    points: &[Vec3],
-    outside: &[bool],
-    first: &[u32],
-    wide: &mut UnionFind,
-    split: &mut UnionFind,
-) {
-    let stats = Stats::gather(points, &vec![0.0; points.len()], split);
-    let group: Vec<u32> = (0..points.len() as u32).map(|i| split.find(i)).collect();
-    for i in 0..points.len() as u32 {
-        let ring_first = first[wide.find(i) as usize];
-        if outside[i as usize]
-            && ring_first != u32::MAX
-            && stats.spread(group[i as usize] as usize) > TWIG_MAX_SPREAD_M
-        {
-            split.union(ring_first, i);
-        }
-    }
 }
 
 /// Puts groups of outside points that no section grows from back into their
