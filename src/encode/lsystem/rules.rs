@@ -115,11 +115,11 @@ impl Counts {
                 counts.singles[id as usize] += 1;
             }
         }
-        let mut touched = Vec::new();
-        counts.count_pairs(ids, true, &mut touched);
+        counts.count_pairs(ids, true, &mut Vec::new());
         let singles = (0..symbols.table.len() as u32).map(|a| (a, 0));
-        counts.enqueue(singles.collect(), symbols);
-        counts.enqueue(touched, symbols);
+        let pairs = counts.pairs.keys().map(|&[a, b]| (a, b + 1));
+        let keys: Vec<PatternKey> = singles.chain(pairs).collect();
+        counts.enqueue(keys, symbols);
         counts
     }
 
@@ -138,10 +138,9 @@ impl Counts {
         saving(self.count(key), len)
     }
 
-    /// Queues the patterns of `keys` that occur, at their current saving.
-    fn enqueue(&mut self, mut keys: Vec<PatternKey>, symbols: &Symbols) {
-        keys.sort_unstable();
-        keys.dedup();
+    /// Queues the patterns of `keys` (distinct) that occur, at their
+    /// current saving.
+    fn enqueue(&mut self, keys: Vec<PatternKey>, symbols: &Symbols) {
         for key in keys {
             if self.count(key) > 0 {
                 self.queue.push((self.saving(key, symbols), Reverse(key)));
@@ -206,6 +205,8 @@ impl Counts {
                 touched.push((id, 0));
             }
         }
+        touched.sort_unstable();
+        touched.dedup();
         self.enqueue(touched, symbols);
     }
 }
