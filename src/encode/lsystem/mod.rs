@@ -51,8 +51,6 @@ mod rules;
 mod turtle;
 mod write;
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
 pub use format::{ErrorBound, LsJson};
@@ -354,7 +352,7 @@ fn use_defaults<'a>(
 ) -> Dimensions {
     let mut rules: Vec<&mut Vec<Symbol>> = rules.collect();
     let mode = |chars: &[u8], all: &[&Vec<Symbol>]| {
-        let mut counts: HashMap<u64, usize> = HashMap::new();
+        let mut counts: foldhash::HashMap<u64, usize> = foldhash::HashMap::default();
         for s in all.iter().flat_map(|v| v.iter()) {
             if let (true, Some(p)) = (chars.contains(&s.ch), s.param) {
                 *counts.entry(p.to_bits()).or_default() += 1;

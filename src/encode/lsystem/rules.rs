@@ -8,7 +8,9 @@
 //! patterns. The expanded L-string is exactly the one written, so the
 //! closed-loop guarantee is untouched.
 
-use std::collections::{BTreeMap, HashMap};
+use std::cmp::Reverse;
+use std::collections::{BTreeMap, BinaryHeap, HashMap};
+use std::ops::Range;
 
 use super::format::{Symbol, print};
 
@@ -33,7 +35,7 @@ fn cost(s: &Symbol) -> usize {
 struct Symbols {
     table: Vec<Symbol>,
     cost: Vec<usize>,
-    index: HashMap<Key, u32>,
+    index: foldhash::HashMap<Key, u32>,
 }
 
 impl Symbols {
@@ -61,8 +63,8 @@ pub(crate) fn compress(
         .filter(|c| !b"Ff".contains(c) && !taken.contains(c));
     let mut symbols = Symbols::default();
     let mut ids: Vec<u32> = axiom.iter().map(|s| symbols.id(s)).collect();
-    let mut scratch = Scratch::default();
-    while let Some(pattern) = best_pattern(&ids, &symbols, &mut scratch) {
+    let mut counts = Counts::new(&ids, &symbols);
+    while let Some(pattern) = counts.best(&symbols) {
         let Some(letter) = free.next() else {
             break;
         };
@@ -73,96 +75,207 @@ pub(crate) fn compress(
             .max()
             .copied()
             .unwrap_or(0);
-        replace(&mut ids, &pattern, symbols.id(&Symbol::bare(letter)));
+        let letter_id = symbols.id(&Symbol::bare(letter));
+        counts.replace(&mut ids, &pattern, letter_id, &symbols);
         depth.insert(letter, body_depth + 1);
         rules.insert(letter, body);
     }
     *axiom = ids.iter().map(|&i| symbols.table[i as usize]).collect();
 }
 
-/// The single symbol or adjacent pair whose replacement saves most bytes,
-/// if any saves some. Ties go to the smallest ids, so the result does not
-/// depend on counting order. Pairs are counted by sorting, without overlap
-/// inside runs such as `aaa`.
-fn best_pattern(ids: &[u32], symbols: &Symbols, scratch: &mut Scratch) -> Option<Vec<u32>> {
-    let singles = &mut scratch.singles;
-    singles.clear();
-    singles.resize(symbols.table.len(), 0);
-    let pairs = &mut scratch.pairs;
-    pairs.clear();
-    let mut last_counted = usize::MAX;
-    for (i, &id) in ids.iter().enumerate() {
-        if symbols.table[id as usize].param.is_some() {
-            singles[id as usize] += 1;
-        }
-        if i == 0 {
-            continue;
-        }
-        let overlaps = last_counted == i - 1 && ids[i - 2] == ids[i - 1] && ids[i - 1] == id;
-        if !overlaps {
-            pairs.push([ids[i - 1], id]);
-            last_counted = i;
-        }
-    }
-    sort_pairs(
-        pairs,
-        symbols.table.len(),
-        &mut scratch.sorted,
-        &mut scratch.start,
-    );
-    let cost = |id: u32| symbols.cost[id as usize];
-    // A single `[a]` orders before the pair `[a, b]`, as `None` before `Some`.
-    let singles = singles
-        .iter()
-        .enumerate()
-        .filter(|&(_, &n)| n > 0)
-        .map(|(id, &n)| (saving(n, cost(id as u32)), (id as u32, None)));
-    let pairs = pairs.chunk_by(|a, b| a == b).map(|run| {
-        let [a, b] = run[0];
-        (saving(run.len(), cost(a) + cost(b)), (a, Some(b)))
-    });
-    let (gain, (first, second)) = singles
-        .chain(pairs)
-        .max_by(|x, y| x.0.cmp(&y.0).then_with(|| y.1.cmp(&x.1)))?;
-    (gain > 0).then(|| std::iter::once(first).chain(second).collect())
-}
+/// A candidate pattern as the search orders ties: `(a, 0)` is the single
+/// `a`, `(a, b + 1)` the pair `a b`, so a single comes before the pairs that
+/// start with it and smaller ids come first.
+type PatternKey = (u32, u32);
 
-/// Buffers that [`best_pattern`] reuses from one rule to the next.
-#[derive(Default)]
-struct Scratch {
+/// Occurrences of the parametrised symbols and of the adjacent pairs of the
+/// text, kept up to date through each replacement instead of recounted for
+/// every rule: the incremental pair counts and priority queue of Re-Pair
+/// (Larsson & Moffat 2000, "Off-line dictionary-based compression", §2).
+/// Pairs of equal symbols are counted without overlap: `⌊r/2⌋` in a run of
+/// `r`, as the left-to-right replacement takes them.
+struct Counts {
     singles: Vec<usize>,
-    pairs: Vec<[u32; 2]>,
-    sorted: Vec<[u32; 2]>,
-    start: Vec<usize>,
+    pairs: foldhash::HashMap<[u32; 2], usize>,
+    /// Patterns by saving, then smallest key. A pattern whose count has
+    /// changed since it was queued is stale and skipped; every pattern that
+    /// occurs has an entry at its current saving.
+    queue: BinaryHeap<(i64, Reverse<PatternKey>)>,
 }
 
-/// Sorts pairs of ids below `symbol_count` by a two-pass radix sort (by
-/// the second id, then stably by the first): linear, where a comparison
-/// sort of every pair for every rule dominated the encoder.
-fn sort_pairs(
-    pairs: &mut Vec<[u32; 2]>,
-    symbol_count: usize,
-    sorted: &mut Vec<[u32; 2]>,
-    start: &mut Vec<usize>,
-) {
-    for digit in [1, 0] {
-        start.clear();
-        start.resize(symbol_count + 1, 0);
-        for p in pairs.iter() {
-            start[p[digit] as usize + 1] += 1;
+impl Counts {
+    fn new(ids: &[u32], symbols: &Symbols) -> Self {
+        let mut counts = Self {
+            singles: vec![0; symbols.table.len()],
+            pairs: foldhash::HashMap::default(),
+            queue: BinaryHeap::new(),
+        };
+        for &id in ids {
+            if symbols.table[id as usize].param.is_some() {
+                counts.singles[id as usize] += 1;
+            }
         }
-        for i in 1..start.len() {
-            start[i] += start[i - 1];
-        }
-        sorted.clear();
-        sorted.resize(pairs.len(), [0; 2]);
-        for &p in pairs.iter() {
-            let slot = &mut start[p[digit] as usize];
-            sorted[*slot] = p;
-            *slot += 1;
-        }
-        std::mem::swap(pairs, sorted);
+        counts.count_pairs(ids, true, &mut Vec::new());
+        let singles = (0..symbols.table.len() as u32).map(|a| (a, 0));
+        let pairs = counts.pairs.keys().map(|&[a, b]| (a, b + 1));
+        let keys: Vec<PatternKey> = singles.chain(pairs).collect();
+        counts.enqueue(keys, symbols);
+        counts
     }
+
+    /// Occurrences of `key` now.
+    fn count(&self, (a, b): PatternKey) -> usize {
+        match b.checked_sub(1) {
+            None => self.singles[a as usize],
+            Some(b) => self.pairs.get(&[a, b]).copied().unwrap_or(0),
+        }
+    }
+
+    /// Bytes saved by a rule for `key` now.
+    fn saving(&self, key: PatternKey, symbols: &Symbols) -> i64 {
+        let cost = |id: u32| symbols.cost[id as usize];
+        let len = cost(key.0) + key.1.checked_sub(1).map_or(0, cost);
+        saving(self.count(key), len)
+    }
+
+    /// Queues the patterns of `keys` (distinct) that occur, at their
+    /// current saving.
+    fn enqueue(&mut self, keys: Vec<PatternKey>, symbols: &Symbols) {
+        for key in keys {
+            if self.count(key) > 0 {
+                self.queue.push((self.saving(key, symbols), Reverse(key)));
+            }
+        }
+    }
+
+    /// The single symbol or adjacent pair whose replacement saves most
+    /// bytes, if any saves some; ties go to the smallest ids, so the result
+    /// does not depend on counting order.
+    fn best(&mut self, symbols: &Symbols) -> Option<Vec<u32>> {
+        while let Some(&(gain, Reverse(key))) = self.queue.peek() {
+            if self.count(key) > 0 && self.saving(key, symbols) == gain {
+                let (a, b) = key;
+                return (gain > 0).then(|| std::iter::once(a).chain(b.checked_sub(1)).collect());
+            }
+            self.queue.pop();
+        }
+        None
+    }
+
+    /// Adds (or removes) the pairs of `ids`, a stretch of whole runs, and
+    /// notes the pairs whose count changed in `touched`.
+    fn count_pairs(&mut self, ids: &[u32], add: bool, touched: &mut Vec<PatternKey>) {
+        let mut run_start = 0;
+        for i in 1..ids.len() {
+            let pair = [ids[i - 1], ids[i]];
+            if pair[0] != pair[1] {
+                run_start = i;
+            } else if (i - run_start) % 2 == 0 {
+                continue;
+            }
+            let n = self.pairs.entry(pair).or_default();
+            if add {
+                *n += 1;
+            } else {
+                *n -= 1;
+            }
+            touched.push((pair[0], pair[1] + 1));
+        }
+    }
+
+    /// Replaces every non-overlapping occurrence of `pattern`, left to
+    /// right, by `letter` (the text only shrinks) and updates the counts:
+    /// only the pairs in the runs around each occurrence change.
+    fn replace(&mut self, ids: &mut Vec<u32>, pattern: &[u32], letter: u32, symbols: &Symbols) {
+        let starts = occurrences(ids, pattern);
+        let regions = regions(ids, &starts, pattern.len());
+        let mut touched = Vec::new();
+        for (old, _) in &regions {
+            self.count_pairs(&ids[old.clone()], false, &mut touched);
+        }
+        replace_at(ids, &starts, pattern.len(), letter);
+        for (_, new) in &regions {
+            self.count_pairs(&ids[new.clone()], true, &mut touched);
+        }
+        self.pairs.retain(|_, n| *n > 0);
+        self.singles.resize(symbols.table.len(), 0);
+        for &id in pattern {
+            if symbols.table[id as usize].param.is_some() {
+                self.singles[id as usize] -= starts.len();
+                touched.push((id, 0));
+            }
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        self.enqueue(touched, symbols);
+    }
+}
+
+/// Starts of the non-overlapping occurrences of `pattern`, left to right.
+fn occurrences(ids: &[u32], pattern: &[u32]) -> Vec<usize> {
+    let mut starts = Vec::new();
+    let mut i = 0;
+    while let Some(offset) = ids[i..].iter().position(|&id| id == pattern[0]) {
+        let s = i + offset;
+        let end = s + pattern.len();
+        if end <= ids.len() && pattern[1..].iter().zip(&ids[s + 1..]).all(|(p, q)| p == q) {
+            starts.push(s);
+            i = end;
+        } else {
+            i = s + 1;
+        }
+    }
+    starts
+}
+
+/// The stretches of `ids` whose pairs a replacement at `starts` changes,
+/// before and after it: each occurrence with its neighbours, widened to
+/// whole runs (so that runs of equal symbols are counted whole) and merged
+/// where they overlap. Outside them, pairs and runs stay as they are.
+fn regions(ids: &[u32], starts: &[usize], len: usize) -> Vec<(Range<usize>, Range<usize>)> {
+    let shrink = len - 1;
+    // (first index, last index inclusive, first and last occurrence).
+    let mut merged: Vec<(usize, usize, usize, usize)> = Vec::new();
+    for (j, &s) in starts.iter().enumerate() {
+        let mut lo = s.saturating_sub(1);
+        while lo > 0 && ids[lo - 1] == ids[lo] {
+            lo -= 1;
+        }
+        let mut hi = (s + len).min(ids.len() - 1);
+        while hi + 1 < ids.len() && ids[hi + 1] == ids[hi] {
+            hi += 1;
+        }
+        match merged.last_mut() {
+            Some(last) if lo <= last.1 => {
+                last.1 = last.1.max(hi);
+                last.3 = j;
+            }
+            _ => merged.push((lo, hi, j, j)),
+        }
+    }
+    merged
+        .into_iter()
+        .map(|(lo, hi, first, last)| {
+            let new = lo - shrink * first..hi + 1 - shrink * (last + 1);
+            (lo..hi + 1, new)
+        })
+        .collect()
+}
+
+/// Replaces the occurrences starting at `starts` (non-overlapping, in
+/// order) by `letter`, in place.
+fn replace_at(ids: &mut Vec<u32>, starts: &[usize], len: usize, letter: u32) {
+    let mut kept = 0;
+    let mut from = 0;
+    for &s in starts {
+        ids.copy_within(from..s, kept);
+        kept += s - from;
+        ids[kept] = letter;
+        kept += 1;
+        from = s + len;
+    }
+    ids.copy_within(from.., kept);
+    ids.truncate(kept + ids.len() - from);
 }
 
 /// Bytes saved by replacing `count` occurrences of a pattern of `len` bytes
@@ -189,26 +302,10 @@ pub(crate) fn rule_depths(rules: &BTreeMap<u8, Vec<Symbol>>) -> HashMap<u8, u32>
     depth
 }
 
-/// Replaces every non-overlapping occurrence of `pattern`, left to right,
-/// in place (the text only shrinks).
-fn replace(ids: &mut Vec<u32>, pattern: &[u32], letter: u32) {
-    let mut kept = 0;
-    let mut i = 0;
-    while i < ids.len() {
-        if ids[i] == pattern[0] && ids[i + 1..].starts_with(&pattern[1..]) {
-            ids[kept] = letter;
-            i += pattern.len();
-        } else {
-            ids[kept] = ids[i];
-            i += 1;
-        }
-        kept += 1;
-    }
-    ids.truncate(kept);
-}
-
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::super::format::lex;
     use super::*;
 
@@ -236,5 +333,114 @@ mod tests {
         assert!(print(&axiom).len() < text.len());
         let recursions = depth.values().copied().max().unwrap_or(0);
         assert_eq!(expand_once(&axiom, &rules, recursions), print(&original));
+    }
+
+    /// Full recount, as the search did before every rule: singles of
+    /// parametrised symbols, and pairs without overlap inside runs.
+    fn recount(ids: &[u32], symbols: &Symbols) -> (Vec<usize>, HashMap<[u32; 2], usize>) {
+        let mut singles = vec![0; symbols.table.len()];
+        let mut pairs = HashMap::new();
+        let mut last_counted = usize::MAX;
+        for (i, &id) in ids.iter().enumerate() {
+            if symbols.table[id as usize].param.is_some() {
+                singles[id as usize] += 1;
+            }
+            if i == 0 {
+                continue;
+            }
+            let overlaps = last_counted == i - 1 && ids[i - 2] == ids[i - 1] && ids[i - 1] == id;
+            if !overlaps {
+                *pairs.entry([ids[i - 1], id]).or_default() += 1;
+                last_counted = i;
+            }
+        }
+        (singles, pairs)
+    }
+
+    /// The best pattern by a full recount: most bytes saved, then the
+    /// smallest ids, a single before a pair.
+    fn best_by_recount(ids: &[u32], symbols: &Symbols) -> Option<Vec<u32>> {
+        let (singles, pairs) = recount(ids, symbols);
+        let cost = |id: u32| symbols.cost[id as usize];
+        let singles = (0..singles.len() as u32)
+            .filter(|&a| singles[a as usize] > 0)
+            .map(|a| (saving(singles[a as usize], cost(a)), (a, None)));
+        let pairs = pairs
+            .iter()
+            .map(|(&[a, b], &n)| (saving(n, cost(a) + cost(b)), (a, Some(b))));
+        let (gain, (a, b)) = singles
+            .chain(pairs)
+            .max_by(|x, y| x.0.cmp(&y.0).then_with(|| y.1.cmp(&x.1)))?;
+        (gain > 0).then(|| std::iter::once(a).chain(b).collect())
+    }
+
+    /// Every non-overlapping occurrence of `pattern` replaced, left to right.
+    fn replace_by_scan(ids: &mut Vec<u32>, pattern: &[u32], letter: u32) {
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < ids.len() {
+            if ids[i..].starts_with(pattern) {
+                out.push(letter);
+                i += pattern.len();
+            } else {
+                out.push(ids[i]);
+                i += 1;
+            }
+        }
+        *ids = out;
+    }
+
+    /// Symbols from a small alphabet, so that runs, repeats and ties occur.
+    fn text() -> impl Strategy<Value = Vec<Symbol>> {
+        let symbol = (0usize..6, 0usize..4).prop_map(|(c, p)| {
+            let ch = b"F&[]\\!"[c];
+            match p {
+                0 => Symbol::bare(ch),
+                p => Symbol::with(ch, [0.5, 12.25, 7.0][p - 1]),
+            }
+        });
+        proptest::collection::vec(symbol, 0..300)
+    }
+
+    proptest! {
+        #[test]
+        fn incremental_counts_equal_a_full_recount(text in text(), picks in proptest::collection::vec(0usize..1000, 1..40)) {
+            let mut symbols = Symbols::default();
+            let mut ids: Vec<u32> = text.iter().map(|s| symbols.id(s)).collect();
+            let mut counts = Counts::new(&ids, &symbols);
+            for (letter, pick) in (b'A'..=b'Z').zip(picks) {
+                // Any pattern that occurs, not only the best one.
+                let Some(&start) = ids.get(pick % ids.len().max(1)) else { break };
+                let pattern: Vec<u32> = match ids.get(pick % ids.len() + 1) {
+                    Some(&next) if pick % 3 != 0 => vec![start, next],
+                    _ => vec![start],
+                };
+                let letter = symbols.id(&Symbol::bare(letter));
+                counts.replace(&mut ids, &pattern, letter, &symbols);
+                let (singles, pairs) = recount(&ids, &symbols);
+                prop_assert_eq!(&counts.singles, &singles);
+                let counted: HashMap<[u32; 2], usize> =
+                    counts.pairs.iter().map(|(&k, &n)| (k, n)).collect();
+                prop_assert_eq!(counted, pairs);
+            }
+        }
+
+        #[test]
+        fn rules_are_those_of_a_full_recount(text in text()) {
+            let mut symbols = Symbols::default();
+            let start: Vec<u32> = text.iter().map(|s| symbols.id(s)).collect();
+            let mut by_recount = start.clone();
+            let mut ids = start;
+            let mut counts = Counts::new(&ids, &symbols);
+            for letter in b'A'..=b'Z' {
+                let expected = best_by_recount(&by_recount, &symbols);
+                prop_assert_eq!(&counts.best(&symbols), &expected);
+                let Some(pattern) = expected else { break };
+                let letter = symbols.id(&Symbol::bare(letter));
+                replace_by_scan(&mut by_recount, &pattern, letter);
+                counts.replace(&mut ids, &pattern, letter, &symbols);
+                prop_assert_eq!(&ids, &by_recount);
+            }
+        }
     }
 }

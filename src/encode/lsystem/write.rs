@@ -28,7 +28,7 @@ use glam::DVec3;
 use super::decimal::{number_chars, rounding};
 use super::format::{Dimensions, Symbol};
 use super::generalise::TipPlan;
-use super::turtle::{Effect, TurtleState};
+use super::turtle::{Effect, Turn, TurtleState, step_m};
 use crate::skeleton::{NodeId, Skeleton};
 
 /// Finest rounding tried before printing a number exactly.
@@ -87,10 +87,11 @@ struct Choice {
 /// Roundings of a signed angle in degrees, coarse to fine, plus "omit".
 /// Rounding stops once the error it would add is below `fine_deg`.
 fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> Vec<Choice> {
-    let mut out = vec![Choice {
+    let mut out = Vec::with_capacity(MAX_DECIMALS + 4);
+    out.push(Choice {
         symbol: None,
         cost: 0,
-    }];
+    });
     let mut last = 0.0;
     for k in 0..=MAX_DECIMALS {
         let rounded = rounding(angle_deg, k);
@@ -117,7 +118,7 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
 
 /// Roundings of an internode length in length units, coarse to fine.
 fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
-    let mut out: Vec<Choice> = Vec::new();
+    let mut out: Vec<Choice> = Vec::with_capacity(MAX_DECIMALS + 4);
     let mut last = f64::NAN;
     for k in 0..=MAX_DECIMALS {
         let rounded = rounding(length, k);
@@ -168,7 +169,13 @@ fn turn_choices(
     let to_deg = |distance_m: f64, lever_m: f64| (distance_m / lever_m.max(1e-300)).to_degrees();
     let angle = |value: f64, positive: u8, negative: u8, lever_m: f64| {
         let mut out = angle_choices(value, positive, negative, to_deg(fine_m, lever_m));
-        out.extend(favoured.near(value, positive, negative, to_deg(budget_m, lever_m)));
+        favoured.add_near(
+            value,
+            positive,
+            negative,
+            to_deg(budget_m, lever_m),
+            &mut out,
+        );
         out
     };
     let (roll, pitch) = roll_pitch(turtle, direction, true);
@@ -222,24 +229,23 @@ impl Favoured {
         Favoured(symbols)
     }
 
-    /// Favoured symbols for a quantity `value` written with `positive` (or
-    /// `negative` for negative values), within `reach` of it.
-    fn near(&self, value: f64, positive: u8, negative: u8, reach: f64) -> Vec<Choice> {
-        self.0
-            .iter()
-            .filter_map(|s| {
-                let p = s.param?;
-                let signed = match s.ch {
-                    c if c == positive => p,
-                    c if c == negative => -p,
-                    _ => return None,
-                };
-                ((signed - value).abs() <= reach).then_some(Choice {
-                    symbol: Some(*s),
-                    cost: 1,
-                })
+    /// Adds to `out` the favoured symbols for a quantity `value` written
+    /// with `positive` (or `negative` for negative values), within `reach`
+    /// of it.
+    fn add_near(&self, value: f64, positive: u8, negative: u8, reach: f64, out: &mut Vec<Choice>) {
+        let near = self.0.iter().filter_map(|s| {
+            let p = s.param?;
+            let signed = match s.ch {
+                c if c == positive => p,
+                c if c == negative => -p,
+                _ => return None,
+            };
+            ((signed - value).abs() <= reach).then_some(Choice {
+                symbol: Some(*s),
+                cost: 1,
             })
-            .collect()
+        });
+        out.extend(near);
     }
 }
 
@@ -290,37 +296,22 @@ pub(crate) fn write_internode(
         vec![[vec![none], vec![none]]]
     };
     let mut lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
-    lengths.extend(favoured.near(length / dims.unit_m, b'F', b'F', budget / dims.unit_m));
+    favoured.add_near(
+        length / dims.unit_m,
+        b'F',
+        b'F',
+        budget / dims.unit_m,
+        &mut lengths,
+    );
     let search = Search::new(&turns, &lengths);
-    // Many combinations share a turn and pitch: the turtle after them is
-    // computed once, by the same operations, so the result is unchanged.
-    let mut turned: Vec<u32> = vec![u32::MAX; search.triples];
-    let mut states: Vec<TurtleState> = Vec::new();
-    let mut simulate = |c: &Combo| {
-        if turned[c.pair] == u32::MAX {
-            let [turn, pitches] = &turns[c.way];
-            let mut t = *turtle;
-            for s in [turn[c.turn].symbol, pitches[c.pitch].symbol]
-                .into_iter()
-                .flatten()
-            {
-                t.apply(s, dims, true);
-            }
-            turned[c.pair] = states.len() as u32;
-            states.push(t);
-        }
-        let mut t = states[turned[c.pair] as usize];
-        if let Some(s) = lengths[c.length].symbol {
-            t.apply(s, dims, true);
-        }
-        (t, t.position.distance(target))
-    };
+    let mut trials = Trials::new(turtle, &turns, &lengths, search.triples.len(), dims);
     let chosen = search
-        .find(|c| simulate(c).1 <= budget)
+        .find(|c| trials.error(c, target) <= budget)
         // The finest roundings are nearly exact; should even they miss
         // (a tolerance of 0), the last, finest combination is the best.
         .unwrap_or_else(|| search.last());
-    let (state, error) = simulate(&chosen);
+    let error = trials.error(&chosen, target);
+    let state = trials.state(&chosen);
     let [turn, pitches] = &turns[chosen.way];
     out.extend(
         [
@@ -333,6 +324,101 @@ pub(crate) fn write_internode(
     );
     *turtle = state;
     error
+}
+
+/// The decoded states of the combinations the search tries. Many share a
+/// turn, or a turn and a pitch: each rotation and each turned state is
+/// computed once, by the reader's own operations ([`Turn`],
+/// [`TurtleState::turn`]), so every state is bit for bit the one the
+/// reader will have.
+struct Trials<'a> {
+    start: &'a TurtleState,
+    turns: &'a [[Vec<Choice>; 2]],
+    dims: &'a Dimensions,
+    /// Step of each length choice, metres (`None` for no `F`).
+    steps: Vec<Option<f64>>,
+    /// First index of each way's turns, and of its pitches, in the caches.
+    first: Vec<[usize; 2]>,
+    /// State after each way's turn choices.
+    turned: Vec<Option<TurtleState>>,
+    /// Rotation of each way's pitch choices.
+    pitches: Vec<Option<Option<Turn>>>,
+    /// State after each (way, turn, pitch) triple.
+    pitched: Vec<Option<TurtleState>>,
+}
+
+impl<'a> Trials<'a> {
+    fn new(
+        start: &'a TurtleState,
+        turns: &'a [[Vec<Choice>; 2]],
+        lengths: &[Choice],
+        triples: usize,
+        dims: &'a Dimensions,
+    ) -> Self {
+        let mut first = Vec::with_capacity(turns.len());
+        let (mut turn_count, mut pitch_count) = (0, 0);
+        for [turn, pitches] in turns {
+            first.push([turn_count, pitch_count]);
+            turn_count += turn.len();
+            pitch_count += pitches.len();
+        }
+        Self {
+            start,
+            turns,
+            dims,
+            steps: lengths
+                .iter()
+                .map(|f| f.symbol.map(|s| step_m(s, dims)))
+                .collect(),
+            first,
+            turned: vec![None; turn_count],
+            pitches: vec![None; pitch_count],
+            pitched: vec![None; triples],
+        }
+    }
+
+    /// The state after the turn and pitch of `c`, before its step.
+    fn pitched(&mut self, c: &Combo) -> TurtleState {
+        if let Some(state) = self.pitched[c.pair] {
+            return state;
+        }
+        let [turn, pitches] = &self.turns[c.way];
+        let [turn_base, pitch_base] = self.first[c.way];
+        let (start, dims) = (self.start, self.dims);
+        let mut state = *self.turned[turn_base + c.turn].get_or_insert_with(|| {
+            let mut t = *start;
+            if let Some(s) = turn[c.turn].symbol {
+                t.apply(s, dims, true);
+            }
+            t
+        });
+        let pitch = *self.pitches[pitch_base + c.pitch].get_or_insert_with(|| {
+            pitches[c.pitch]
+                .symbol
+                .and_then(|s| Turn::of(s, dims, true))
+        });
+        if let Some(p) = pitch {
+            state.turn(p);
+        }
+        self.pitched[c.pair] = Some(state);
+        state
+    }
+
+    /// Distance from the node `c` draws to `target`.
+    fn error(&mut self, c: &Combo, target: DVec3) -> f64 {
+        let state = self.pitched(c);
+        let node = self.steps[c.length].map_or(state.position, |l| state.ahead(l));
+        node.distance(target)
+    }
+
+    /// The state after all of `c`.
+    fn state(&mut self, c: &Combo) -> TurtleState {
+        let mut state = self.pitched(c);
+        if let Some(l) = self.steps[c.length] {
+            state.forward(l);
+        }
+        state
+    }
 }
 
 /// One combination of a way to turn, its turn and pitch roundings and a
@@ -351,96 +437,147 @@ struct Combo {
 /// equal cost, in the order of the nested loops (way, turn, pitch,
 /// length). Costs are a few dozen bytes, so the search goes through them
 /// cost by cost, without building and sorting every combination: the
-/// cheapest that fits is usually among the first few costs.
-struct Search<'c> {
-    turns: &'c [[Vec<Choice>; 2]],
-    /// Indices of the length choices of each cost.
-    lengths_by_cost: Vec<Vec<usize>>,
-    /// Number of (way, turn, pitch) triples.
-    triples: usize,
+/// triples are grouped by cost once, and those of one total cost are the
+/// groups that complete a length's cost, merged back into loop order. The
+/// cheapest combination that fits is often some ten costs up.
+struct Search {
+    /// The (way, turn, pitch) triples, in loop order.
+    triples: Vec<[usize; 3]>,
+    /// Indices of the triples ordered by cost, then index.
+    by_cost: Vec<u32>,
+    /// Where the triples of each cost start in `by_cost`, one past the
+    /// dearest.
+    cost_start: Vec<usize>,
+    /// Costs and indices of the length choices, ordered.
+    lengths: Vec<(usize, usize)>,
 }
 
-impl<'c> Search<'c> {
-    fn new(turns: &'c [[Vec<Choice>; 2]], lengths: &[Choice]) -> Self {
-        let max_length_cost = lengths.iter().map(|f| f.cost).max().unwrap_or(0);
-        let mut lengths_by_cost = vec![Vec::new(); max_length_cost + 1];
-        for (i, f) in lengths.iter().enumerate() {
-            lengths_by_cost[f.cost].push(i);
+impl Search {
+    fn new(turns: &[[Vec<Choice>; 2]], lengths: &[Choice]) -> Self {
+        let count = turns.iter().map(|[t, p]| t.len() * p.len()).sum();
+        let mut triples = Vec::with_capacity(count);
+        let mut costs = Vec::with_capacity(count);
+        for (way, [turn, pitches]) in turns.iter().enumerate() {
+            for (ti, r) in turn.iter().enumerate() {
+                for (pi, p) in pitches.iter().enumerate() {
+                    triples.push([way, ti, pi]);
+                    costs.push(r.cost + p.cost);
+                }
+            }
         }
-        let triples = turns.iter().map(|[t, p]| t.len() * p.len()).sum();
-        Self {
-            turns,
-            lengths_by_cost,
-            triples,
-        }
-    }
-
-    /// Every (way, turn, pitch) triple, in loop order, with its cost.
-    fn triples(&self) -> impl Iterator<Item = (usize, Combo)> + '_ {
-        let mut pair = 0;
-        self.turns
+        let (by_cost, cost_start) = counting_sort(&costs);
+        let mut lengths: Vec<(usize, usize)> = lengths
             .iter()
             .enumerate()
-            .flat_map(|(way, [turn, pitches])| {
-                turn.iter().enumerate().flat_map(move |(ti, r)| {
-                    pitches
-                        .iter()
-                        .enumerate()
-                        .map(move |(pi, p)| (r.cost + p.cost, (way, ti, pi)))
-                })
-            })
-            .map(move |(cost, (way, turn, pitch))| {
-                pair += 1;
-                let combo = Combo {
-                    way,
-                    turn,
-                    pitch,
-                    length: 0,
-                    pair: pair - 1,
-                };
-                (cost, combo)
-            })
+            .map(|(i, f)| (f.cost, i))
+            .collect();
+        lengths.sort_unstable();
+        Self {
+            triples,
+            by_cost,
+            cost_start,
+            lengths,
+        }
     }
 
-    /// The combinations of total cost `cost`, in loop order.
-    fn at_cost(&self, cost: usize) -> impl Iterator<Item = Combo> + '_ {
-        self.triples().flat_map(move |(turn_cost, combo)| {
-            let lengths = cost
-                .checked_sub(turn_cost)
-                .and_then(|rest| self.lengths_by_cost.get(rest))
-                .map_or(&[][..], Vec::as_slice);
-            lengths.iter().map(move |&length| Combo { length, ..combo })
-        })
+    /// Indices of the triples of cost `cost`, in loop order.
+    fn triples_at(&self, cost: usize) -> &[u32] {
+        match (self.cost_start.get(cost), self.cost_start.get(cost + 1)) {
+            (Some(&from), Some(&to)) => &self.by_cost[from..to],
+            _ => &[],
+        }
     }
 
-    /// Cheapest and dearest total costs.
-    fn cost_range(&self) -> (usize, usize) {
-        let (min_turn, max_turn) = self
-            .triples()
-            .fold((usize::MAX, 0), |(lo, hi), (c, _)| (lo.min(c), hi.max(c)));
-        let min_length = self
-            .lengths_by_cost
-            .iter()
-            .position(|l| !l.is_empty())
-            .unwrap_or(0);
-        (
-            min_turn + min_length,
-            max_turn + self.lengths_by_cost.len() - 1,
-        )
+    fn combo(&self, pair: u32, length: usize) -> Combo {
+        let [way, turn, pitch] = self.triples[pair as usize];
+        Combo {
+            way,
+            turn,
+            pitch,
+            length,
+            pair: pair as usize,
+        }
     }
 
     /// The cheapest combination (first in loop order) that `fits`.
     fn find(&self, mut fits: impl FnMut(&Combo) -> bool) -> Option<Combo> {
         let (cheapest, dearest) = self.cost_range();
-        (cheapest..=dearest).find_map(|cost| self.at_cost(cost).find(|c| fits(c)))
+        let mut groups: Vec<Group> = Vec::new();
+        for cost in cheapest..=dearest {
+            groups.clear();
+            for lengths in self.lengths.chunk_by(|a, b| a.0 == b.0) {
+                let Some(turn_cost) = cost.checked_sub(lengths[0].0) else {
+                    break;
+                };
+                let triples = self.triples_at(turn_cost);
+                if !triples.is_empty() {
+                    groups.push((triples, lengths));
+                }
+            }
+            // A triple has one cost, so it is in at most one group.
+            while let Some((triples, lengths)) = groups
+                .iter_mut()
+                .filter(|(t, _)| !t.is_empty())
+                .min_by_key(|(t, _)| t[0])
+            {
+                let pair = triples[0];
+                *triples = &triples[1..];
+                for &(_, length) in *lengths {
+                    let combo = self.combo(pair, length);
+                    if fits(&combo) {
+                        return Some(combo);
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// Cheapest and dearest total costs.
+    fn cost_range(&self) -> (usize, usize) {
+        let min_turn = (0..self.cost_start.len() - 1)
+            .find(|&c| !self.triples_at(c).is_empty())
+            .unwrap_or(0);
+        let max_turn = self.cost_start.len() - 2;
+        let min_length = self.lengths.first().map_or(0, |l| l.0);
+        let max_length = self.lengths.last().map_or(0, |l| l.0);
+        (min_turn + min_length, max_turn + max_length)
     }
 
     /// The most expensive combination, last in loop order.
     fn last(&self) -> Combo {
-        self.at_cost(self.cost_range().1)
+        let max_turn = self.cost_start.len() - 2;
+        let pair = *self
+            .triples_at(max_turn)
             .last()
-            .expect("there is always at least one combination")
+            .expect("there is always at least one combination");
+        let &(_, length) = self.lengths.last().expect("there is always a length");
+        self.combo(pair, length)
     }
+}
+
+/// For one length cost at one total cost: the triples of the complementary
+/// cost not yet merged, and the lengths.
+type Group<'s> = (&'s [u32], &'s [(usize, usize)]);
+
+/// Indices of `costs` ordered by cost, then index, and where each cost
+/// starts among them (one past the dearest at the end).
+fn counting_sort(costs: &[usize]) -> (Vec<u32>, Vec<usize>) {
+    let dearest = costs.iter().copied().max().unwrap_or(0);
+    let mut start = vec![0; dearest + 2];
+    for &c in costs {
+        start[c + 1] += 1;
+    }
+    for c in 1..start.len() {
+        start[c] += start[c - 1];
+    }
+    let mut next = start.clone();
+    let mut order = vec![0; costs.len()];
+    for (i, &c) in costs.iter().enumerate() {
+        order[next[c]] = i as u32;
+        next[c] += 1;
+    }
+    (order, start)
 }
 
 /// Appends `!(w)` if the decoded width is further than the radius budget
