@@ -7,9 +7,9 @@
 //! times: a few short laterals side by side, each joined to a different
 //! stem node across the stem's wood. Only one of those joins can be where
 //! the twig leaves the stem; the others cross wood in which no branch runs.
-//! On the clean synthetic poplars, half or more of the skeleton length that
-//! lies off the true branches is first internodes of laterals of thick
-//! stems.
+//! On four clean synthetic scans (poplars s7 and s11, oaks s1 and s9),
+//! 42–70 % of the skeleton length that lies off the true branches is first
+//! internodes of laterals of thick stems.
 //!
 //! [`rejoin_twins`] attaches such a lateral to the nearest thin node of
 //! another branch when that node lies within a gap much shorter than the
