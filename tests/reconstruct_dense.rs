@@ -485,3 +485,61 @@ fn a_sparsely_sampled_twig_gets_a_smooth_chain_inside_it() {
         }
     }
 }
+
+/// A thick trunk that forks at a narrow angle into two stems almost as
+/// thick (a codominant fork), scanned on its outer bark only: bark inside
+/// another stem's wood is no surface.
+fn narrow_fork() -> (Vec<(Vec3, Vec3, f32)>, Vec<Vec3>) {
+    let fork = Vec3::new(0.0, 0.0, 3.0);
+    let stems = vec![
+        (Vec3::ZERO, fork, 0.2),
+        (fork, fork + Vec3::new(0.7, 0.0, 3.0), 0.17),
+        (fork, fork + Vec3::new(-0.6, 0.2, 3.0), 0.15),
+    ];
+    let inside = |p: Vec3, own: usize| {
+        stems.iter().enumerate().any(|(k, &(a, b, r))| {
+            let ab = b - a;
+            let t = (p - a).dot(ab) / ab.length_squared();
+            k != own && (0.0..=1.0).contains(&t) && p.distance(a + ab * t) < r
+        })
+    };
+    let mut points = Vec::new();
+    for (k, stem) in stems.iter().enumerate() {
+        let bark = scan(std::slice::from_ref(stem), 0.012, 7 + k as u64);
+        points.extend(bark.into_iter().filter(|&p| !inside(p, k)));
+    }
+    (stems, points)
+}
+
+/// Where the two stems of a narrow fork part, their rings touch for a metre
+/// or more, and one cross-section held both: its node sat in the crotch, on
+/// the bark between the two axes. Split in two, each half stays on its own
+/// stem's axis.
+#[test]
+fn a_narrow_fork_keeps_both_stems_on_their_axes() {
+    let (stems, points) = narrow_fork();
+    // The stems' node at the fork itself lies between their axes.
+    let fork = stems[0].1;
+    let cloud = PointCloud::from_points(OFFSET, points);
+    let farthest_node = |opts: &Options| {
+        let s = reconstruct(&cloud, opts).unwrap().skeleton;
+        let shift = (s.anchor().origin - OFFSET).as_vec3();
+        s.ids()
+            .filter(|&v| !s.children(v).is_empty())
+            .map(|v| s.position(v) + shift)
+            .filter(|p| p.distance(fork) > 0.4)
+            .map(|p| {
+                stems
+                    .iter()
+                    .map(|&(a, b, _)| segment_distance(p, a, b))
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .fold(0.0, f32::max)
+    };
+    let split = farthest_node(&dense());
+    let mut whole = dense();
+    whole.dense.split_two_stems = false;
+    let merged = farthest_node(&whole);
+    assert!(split < 0.05, "a node {split} m off the stems' axes");
+    assert!(merged > 0.1, "without the split a node is {merged} m off");
+}

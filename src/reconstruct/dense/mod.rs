@@ -50,6 +50,7 @@ use crate::cloud::{CLASS_GROUND, PointCloud};
 use crate::skeleton::{Anchor, Skeleton};
 use crate::spatial::PointIndex;
 
+mod fork_rings;
 mod graph;
 mod lateral_base;
 mod simplify;
@@ -183,6 +184,14 @@ pub struct Params {
     pub twin_gap_bins: f32,
     /// …when its join turns by at least this angle, in degrees.
     pub twin_min_turn_deg: f32,
+    /// Split cross-sections that hold both stems of a narrow fork (see
+    /// `fork_rings`)…
+    pub split_two_stems: bool,
+    /// …when they spread at least this many bin widths (RMS)…
+    pub two_stem_spread_bins: f32,
+    /// …and two circles fit their points with at most this share of one
+    /// circle's mean deviation.
+    pub two_stem_deviation_share: f32,
     /// Rounds of smoothing along thick chains (cross-section spread of at
     /// least two bin widths) before simplification.
     pub smoothing_rounds: usize,
@@ -275,6 +284,9 @@ impl Default for Params {
             lateral_miss_spreads: 1.0,
             twin_gap_bins: 3.0,
             twin_min_turn_deg: 30.0,
+            split_two_stems: true,
+            two_stem_spread_bins: 2.0,
+            two_stem_deviation_share: 0.5,
             smoothing_rounds: 3,
             thin_smoothing_rounds: 0,
             thin_smoothing_reach_bins: 1.0,
@@ -288,6 +300,10 @@ impl Default for Params {
         }
     }
 }
+
+/// Each stem of a split section has at least this many points (see
+/// `fork_rings`).
+const TWO_STEM_MIN_POINTS: usize = 12;
 
 /// The twin a lateral moves to lies within this share of its join's length
 /// (see `twins`).
@@ -371,6 +387,11 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             ring_outlier_m: params.ring_outlier_m,
             max_link_m: params.section_link_spacings * spacing,
             max_ring_link_m: params.ring_link_spacings * spacing,
+            two_stems: params.split_two_stems.then_some(fork_rings::TwoStemRule {
+                min_spread_m: params.two_stem_spread_bins * bin_m,
+                min_points: TWO_STEM_MIN_POINTS,
+                max_deviation_share: params.two_stem_deviation_share,
+            }),
         },
     );
     drop(g);

@@ -15,6 +15,7 @@ use std::collections::HashMap;
 
 use glam::{DVec3, Vec2, Vec3};
 
+use super::fork_rings::{TwoStemRule, split_two_stem_sections};
 use super::graph::{Graph, UnionFind};
 use crate::reconstruct::radii::kasa_fit;
 use crate::reconstruct::{least_spread_axis, principal_spreads};
@@ -58,6 +59,8 @@ pub(super) struct Sectioning {
     /// Graph edges longer than this do not join a thick stem's ring through
     /// the neighbouring bins, in metres (for the same reason).
     pub(super) max_ring_link_m: f32,
+    /// Split sections that hold both stems of a narrow fork (`None`: off).
+    pub(super) two_stems: Option<TwoStemRule>,
 }
 
 /// Builds one node per branch cross-section. `dist` and `pred` come from the
@@ -88,6 +91,9 @@ pub(super) fn cross_sections(
     if opts.merge_overlapping_arcs {
         let stats = Stats::gather(points, dist, &mut uf);
         merge_overlapping(points, &bin, &stats, &mut uf);
+    }
+    if let Some(rule) = &opts.two_stems {
+        uf = split_two_stem_sections(points, &mut uf, rule);
     }
     let Stats {
         lowest,
@@ -622,6 +628,7 @@ mod tests {
                 ring_outlier_m: 0.0,
                 max_link_m: f32::INFINITY,
                 max_ring_link_m: f32::INFINITY,
+                two_stems: None,
             },
         );
         assert_eq!(s.nodes.len(), 2);
@@ -708,6 +715,7 @@ mod tests {
                 ring_outlier_m,
                 max_link_m: f32::INFINITY,
                 max_ring_link_m: f32::INFINITY,
+                two_stems: None,
             },
         )
     }
