@@ -9,6 +9,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::record::{ChainCodeRecord, LsystemRecord, ModelRecord};
 use super::{Progress, Stage};
 use crate::cloud::{self, CloudError, ReadOptions};
 use crate::encode::chaincode::{self, ChainError, ChainOptions};
@@ -125,35 +126,39 @@ pub fn process(
     let chain_options = ChainOptions::default();
     let chain = chaincode::encode(&skeleton, &chain_options)?;
     progress.enter(Stage::Finishing)?;
-    let parameters = serde_json::json!({
-        "mode": tree.mode.name(),
-        "mode_reason": tree.mode_reason,
-        "notes": tree.notes,
-        "lsystem": {
-            "tolerance_m": ls_options.tolerance_m,
-            "radius_tolerance_m": ls_options.radius_tolerance_m,
-            "error": lsjson.error(),
-        },
-        "chaincode": {
-            "voxel_size_m": chain.header().voxel_size_m,
-            "resolution": chain.header().resolution,
-            "radius_step_m": chain.header().radius_step_m,
-            "error_bound_m": chain.error_bound_m(),
-        },
-    });
+    let record = ModelRecord {
+        mode: Some(tree.mode),
+        mode_reason: Some(tree.mode_reason),
+        notes: tree.notes,
+        lsystem: Some(LsystemRecord {
+            tolerance_m: ls_options.tolerance_m,
+            radius_tolerance_m: ls_options.radius_tolerance_m,
+            error: *lsjson.error(),
+        }),
+        chaincode: Some(ChainCodeRecord {
+            voxel_size_m: chain.header().voxel_size_m,
+            resolution: chain.header().resolution,
+            radius_step_m: chain.header().radius_step_m,
+            error_bound_m: chain.error_bound_m(),
+        }),
+    };
     let location: DVec3 = skeleton.absolute_position(NodeId::ROOT);
     Ok(NewModel {
         lsystem: lsjson.to_json(),
         chaincode: chain.compress(),
         skeleton: skeleton.to_json(),
-        parameters: parameters.to_string(),
-        metrics: serde_json::to_string(&tree.metrics)
-            .map_err(|e| JobError::Store(e.to_string()))?,
+        parameters: to_json(&record)?,
+        metrics: to_json(&tree.metrics)?,
         internodes: i64::try_from(skeleton.internode_count()).unwrap_or(i64::MAX),
         location: location.to_array(),
         crs: skeleton.anchor().crs.clone(),
         height_m: f64::from(tree.metrics.height_m),
     })
+}
+
+/// `value` as JSON text for the store.
+fn to_json(value: &impl Serialize) -> Result<String, JobError> {
+    serde_json::to_string(value).map_err(|e| JobError::Store(e.to_string()))
 }
 
 #[cfg(test)]

@@ -137,6 +137,9 @@ const AIRBORNE_VOLUME_NOTE: &str = "wood volume is indicative only: an airborne 
      branch sections, so branch radii follow the pipe model from the DBH (on synthetic \
      AHN-like scans it came out 0.3 to 8 times the true volume)";
 
+/// The mode reason of a pipeline the caller chose.
+const REQUESTED: &str = "requested by the caller (--mode on the command line, mode= at upload)";
+
 /// A reconstructed tree.
 #[derive(Debug, Clone)]
 pub struct Reconstruction {
@@ -178,8 +181,7 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     validate(cloud)?;
     let (mode, mode_reason) = match opts.mode {
         Mode::Auto => survey(cloud).choose(&opts.auto),
-        Mode::Dense => (Mode::Dense, "requested on the command line".to_string()),
-        Mode::Airborne => (Mode::Airborne, "requested on the command line".to_string()),
+        Mode::Dense | Mode::Airborne => (opts.mode, REQUESTED.to_string()),
     };
     let (mut skeleton, tree_cloud, pipeline_notes) = match mode {
         Mode::Dense | Mode::Auto => {
