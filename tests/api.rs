@@ -955,12 +955,7 @@ async fn a_job_past_its_time_limit_fails_with_a_reason_and_frees_its_worker() {
 /// answer, the tree and the listing carry the same record.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_tree_serves_its_model_record() {
-    let tree = silva::synth::generate(
-        &silva::synth::TreeParams::preset(silva::synth::Species::Birch),
-        5,
-        silva::skeleton::Anchor::at(ORIGIN),
-    );
-    let scan = silva::synth::simulate_tls(&tree, &Default::default(), 5);
+    let scan = common::synthetic_cloud(ORIGIN, 5);
     let mut points = scan.points.clone();
     points.push(glam::Vec3::new(0.0, 0.0, 99_000.0));
     let cloud = silva::cloud::PointCloud::from_points(scan.offset, points);
