@@ -35,6 +35,7 @@ pub mod encode;
 pub mod error;
 pub mod eval;
 pub mod grow;
+pub mod interrupt;
 pub mod jobs;
 pub mod mesh;
 pub mod reconstruct;

@@ -948,3 +948,63 @@ async fn a_job_past_its_time_limit_fails_with_a_reason_and_frees_its_worker() {
     })
     .await;
 }
+
+/// The tree document says how its model was made: which pipeline `auto`
+/// chose and why, the best efforts flagged (here a stray return 99 km
+/// above the crown, dropped) and the encodings' error bounds; the `wait`
+/// answer, the tree and the listing carry the same record.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_tree_serves_its_model_record() {
+    let scan = common::synthetic_cloud(ORIGIN, 5);
+    let mut points = scan.points.clone();
+    points.push(glam::Vec3::new(0.0, 0.0, 99_000.0));
+    let cloud = silva::cloud::PointCloud::from_points(scan.offset, points);
+    let laz = silva::cloud::to_laz_bytes(&cloud).unwrap();
+    on_both(|url| {
+        let laz = laz.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let res = srv.upload("mode=auto&wait=true", &laz).await;
+            assert_eq!(res.status(), 201);
+            let created: Value = res.json().await.unwrap();
+            let model = &created["model"];
+            assert_eq!(model["id"], created["model_id"], "{created}");
+            assert_eq!(model["mode"], "dense", "{model}");
+            let reason = model["mode_reason"].as_str().unwrap();
+            assert!(
+                !reason.is_empty() && !reason.contains("requested"),
+                "{reason}"
+            );
+            let notes = model["notes"].as_array().unwrap();
+            assert!(
+                notes.iter().any(|n| n
+                    .as_str()
+                    .unwrap()
+                    .starts_with("1 stray return ignored (1 above")),
+                "{model}"
+            );
+            assert_eq!(model["lsystem"]["error"]["bound_m"], 0.001, "{model}");
+            let max_m = model["lsystem"]["error"]["max_m"].as_f64().unwrap();
+            assert!(max_m <= 0.001, "{model}");
+            let voxel_m = model["chaincode"]["voxel_size_m"].as_f64().unwrap();
+            let bound_m = model["chaincode"]["error_bound_m"].as_f64().unwrap();
+            assert!(
+                (bound_m - 3f64.sqrt() * voxel_m / 2.0).abs() < 1e-12,
+                "{model}"
+            );
+
+            let id = created["id"].as_str().unwrap();
+            let tree: Value = srv
+                .get(&format!("/v1/trees/{id}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(tree["model"], *model);
+            let listed: Value = srv.get("/v1/trees").await.json().await.unwrap();
+            assert_eq!(listed["features"][0]["properties"]["model"], *model);
+            srv.stop().await;
+        }
+    })
+    .await;
+}

@@ -9,6 +9,7 @@ use utoipa::openapi::RefOr;
 use utoipa::openapi::schema::{Object, ObjectBuilder, Schema, Type};
 use uuid::Uuid;
 
+use crate::jobs::ModelRecord;
 use crate::mesh::MeshFormat;
 use crate::reconstruct::Mode;
 use crate::store::{JobRow, JobState, TreeRow};
@@ -56,6 +57,9 @@ pub struct Tree {
     pub metrics: Option<serde_json::Value>,
     /// The current model; null until the first reconstruction succeeds.
     pub model_id: Option<Uuid>,
+    /// How the current model was made: the pipeline, the best efforts it
+    /// flagged and the encodings' error bounds; null until then.
+    pub model: Option<TreeModel>,
     /// Incremented on every change.
     pub version: i64,
     /// RFC 3339.
@@ -94,11 +98,37 @@ impl Tree {
                 .as_deref()
                 .and_then(|m| serde_json::from_str(m).ok()),
             model_id: row.model_id,
+            model: TreeModel::from_row(row),
             version: row.version,
             created_at: rfc3339(row.created_at_ms),
             updated_at: rfc3339(row.updated_at_ms),
             links,
         }
+    }
+}
+
+/// The current model of a tree and its reconstruction record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TreeModel {
+    /// Model id.
+    pub id: Uuid,
+    /// The record the job stored with the model.
+    #[serde(flatten)]
+    pub record: ModelRecord,
+}
+
+impl TreeModel {
+    /// The current model of a stored tree, if it has one. A record an
+    /// older version stored reads with what it holds.
+    fn from_row(row: &TreeRow) -> Option<Self> {
+        Some(Self {
+            id: row.model_id?,
+            record: row
+                .model_parameters
+                .as_deref()
+                .map(ModelRecord::parse)
+                .unwrap_or_default(),
+        })
     }
 }
 
@@ -191,6 +221,8 @@ pub struct TreeProperties {
     pub height_m: Option<f64>,
     /// The current model.
     pub model_id: Option<Uuid>,
+    /// How the current model was made (as in the tree document).
+    pub model: Option<TreeModel>,
     /// RFC 3339.
     pub updated_at: String,
 }
@@ -227,6 +259,7 @@ impl TreeFeature {
                 crs: row.crs.clone(),
                 height_m: row.height_m,
                 model_id: row.model_id,
+                model: TreeModel::from_row(row),
                 updated_at: rfc3339(row.updated_at_ms),
             },
             links: vec![Link::new(

@@ -25,9 +25,11 @@ use crate::store::{JobRow, Store};
 
 mod process;
 pub mod progress;
+mod record;
 
 pub use process::{JobError, JobOptions, PreparedScan, prepare_scan, process};
 pub use progress::{Progress, Stage};
+pub use record::{ChainCodeRecord, LsystemRecord, ModelRecord};
 
 /// How the worker pool runs.
 #[derive(Debug, Clone)]

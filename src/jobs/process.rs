@@ -9,11 +9,12 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::record::{ChainCodeRecord, LsystemRecord, ModelRecord};
 use super::{Progress, Stage};
 use crate::cloud::{self, CloudError, ReadOptions};
 use crate::encode::chaincode::{self, ChainError, ChainOptions};
 use crate::encode::lsystem::{self, LsOptions};
-use crate::reconstruct::{self, Mode, ReconstructError};
+use crate::reconstruct::{self, Mode, ReconstructError, Reconstruction};
 use crate::skeleton::NodeId;
 use crate::store::NewModel;
 
@@ -54,14 +55,18 @@ pub enum JobError {
     LeaseLost,
     /// The job ran past its time limit and was stopped.
     #[error(
-        "stopped during {stage}: the job ran past its time limit of {limit_s} s (silva serve \
-         --job-time-limit-secs); try a smaller or cleaner cloud, or ask for a longer limit"
+        "stopped during {stage}{}: the job ran past its time limit of {limit_s} s (silva serve \
+         --job-time-limit-secs); try a smaller or cleaner cloud, or ask for a longer limit",
+        .step.map(|step| format!(" (before {step})")).unwrap_or_default()
     )]
     TimedOut {
         /// The limit, in seconds.
         limit_s: f64,
         /// What the job was doing at its deadline ([`Stage::name`]).
         stage: &'static str,
+        /// The step within the stage that the deadline stopped, when the
+        /// stage's own check caught it.
+        step: Option<&'static str>,
     },
     /// The processing step panicked; a bug, reported rather than hidden.
     #[error("processing panicked: {0}")]
@@ -97,7 +102,8 @@ pub fn prepare_scan(bytes: &[u8], max_points: usize) -> Result<PreparedScan, Clo
 /// LsJSON and compressed chain code, with their parameters and error bounds,
 /// the tree metrics and the trunk base location. Stops with
 /// [`JobError::TimedOut`] at the first stage boundary past the deadline of
-/// `progress`.
+/// `progress`, or at the first step boundary within reconstruction and
+/// L-system encoding (see [`crate::interrupt`]).
 pub fn process(
     cloud_laz: &[u8],
     options: &JobOptions,
@@ -107,11 +113,7 @@ pub fn process(
     progress.enter(Stage::Reading)?;
     let (cloud, _) = cloud::read_bytes(cloud_laz, &ReadOptions { max_points })?;
     progress.enter(Stage::Reconstructing)?;
-    let reconstruct_options = reconstruct::Options {
-        mode: options.mode,
-        ..reconstruct::Options::default()
-    };
-    let tree = reconstruct::reconstruct(&cloud, &reconstruct_options)?;
+    let tree = reconstruct_tree(&cloud, options, progress)?;
     progress.enter(Stage::EncodingLsystem)?;
     let mut skeleton = tree.skeleton;
     if options.crs.is_some() {
@@ -120,40 +122,63 @@ pub fn process(
         skeleton.set_anchor(anchor);
     }
     let ls_options = LsOptions::default();
-    let lsjson = lsystem::encode(&skeleton, &ls_options);
+    let lsjson = lsystem::encode_within(&skeleton, &ls_options, &progress.interrupt())
+        .map_err(|interrupted| progress.timed_out_at(interrupted))?;
     progress.enter(Stage::EncodingChainCode)?;
     let chain_options = ChainOptions::default();
     let chain = chaincode::encode(&skeleton, &chain_options)?;
     progress.enter(Stage::Finishing)?;
-    let parameters = serde_json::json!({
-        "mode": tree.mode.name(),
-        "mode_reason": tree.mode_reason,
-        "notes": tree.notes,
-        "lsystem": {
-            "tolerance_m": ls_options.tolerance_m,
-            "radius_tolerance_m": ls_options.radius_tolerance_m,
-            "error": lsjson.error(),
-        },
-        "chaincode": {
-            "voxel_size_m": chain.header().voxel_size_m,
-            "resolution": chain.header().resolution,
-            "radius_step_m": chain.header().radius_step_m,
-            "error_bound_m": chain.error_bound_m(),
-        },
-    });
+    let record = ModelRecord {
+        mode: Some(tree.mode),
+        mode_reason: Some(tree.mode_reason),
+        notes: tree.notes,
+        lsystem: Some(LsystemRecord {
+            tolerance_m: ls_options.tolerance_m,
+            radius_tolerance_m: ls_options.radius_tolerance_m,
+            error: *lsjson.error(),
+        }),
+        chaincode: Some(ChainCodeRecord {
+            voxel_size_m: chain.header().voxel_size_m,
+            resolution: chain.header().resolution,
+            radius_step_m: chain.header().radius_step_m,
+            error_bound_m: chain.error_bound_m(),
+        }),
+    };
     let location: DVec3 = skeleton.absolute_position(NodeId::ROOT);
     Ok(NewModel {
         lsystem: lsjson.to_json(),
         chaincode: chain.compress(),
         skeleton: skeleton.to_json(),
-        parameters: parameters.to_string(),
-        metrics: serde_json::to_string(&tree.metrics)
-            .map_err(|e| JobError::Store(e.to_string()))?,
+        parameters: to_json(&record)?,
+        metrics: to_json(&tree.metrics)?,
         internodes: i64::try_from(skeleton.internode_count()).unwrap_or(i64::MAX),
         location: location.to_array(),
         crs: skeleton.anchor().crs.clone(),
         height_m: f64::from(tree.metrics.height_m),
     })
+}
+
+/// The reconstruction stage: stops at the first step boundary of the
+/// pipeline past the deadline of `progress`.
+fn reconstruct_tree(
+    cloud: &cloud::PointCloud,
+    options: &JobOptions,
+    progress: &Progress,
+) -> Result<Reconstruction, JobError> {
+    let reconstruct_options = reconstruct::Options {
+        mode: options.mode,
+        interrupt: progress.interrupt(),
+        ..reconstruct::Options::default()
+    };
+    reconstruct::reconstruct(cloud, &reconstruct_options).map_err(|e| match e {
+        ReconstructError::Interrupted(interrupted) => progress.timed_out_at(interrupted),
+        other => JobError::Reconstruct(other),
+    })
+}
+
+/// `value` as JSON text for the store.
+fn to_json(value: &impl Serialize) -> Result<String, JobError> {
+    serde_json::to_string(value).map_err(|e| JobError::Store(e.to_string()))
 }
 
 #[cfg(test)]
@@ -164,17 +189,47 @@ mod tests {
 
     use super::*;
 
-    #[test]
-    fn a_job_past_its_deadline_stops_at_the_next_stage() {
-        // A stem 3 m tall: a few hundred milliseconds of work.
+    /// A stem 3 m tall: a few hundred milliseconds of work.
+    fn stem() -> cloud::PointCloud {
         let points = (0..3000)
             .map(|i| {
                 let a = i as f32 * 2.399_963;
                 Vec3::new(0.1 * a.cos(), 0.1 * a.sin(), 3.0 * i as f32 / 3000.0)
             })
             .collect();
-        let laz =
-            cloud::to_laz_bytes(&cloud::PointCloud::from_points(DVec3::ZERO, points)).unwrap();
+        cloud::PointCloud::from_points(DVec3::ZERO, points)
+    }
+
+    /// A deadline that passes once reconstruction has started stops it at
+    /// its next step boundary, not at the end of the stage, and the error
+    /// names the step.
+    #[test]
+    fn a_deadline_inside_reconstruction_stops_it_at_a_step() {
+        let mut progress = Progress::with_limit(Some(Duration::from_secs(3600)));
+        progress.enter(Stage::Reconstructing).unwrap();
+        progress.expire_now();
+        let err = reconstruct_tree(&stem(), &JobOptions::default(), &progress).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                JobError::TimedOut {
+                    stage: "reconstruction",
+                    step: Some("stray-return removal"),
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert!(
+            err.to_string()
+                .starts_with("stopped during reconstruction (before stray-return removal): "),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_job_past_its_deadline_stops_at_the_next_stage() {
+        let laz = cloud::to_laz_bytes(&stem()).unwrap();
         let options = JobOptions::default();
         let late = Progress::with_limit(Some(Duration::ZERO));
         let err = process(&laz, &options, 10_000, &late).unwrap_err();

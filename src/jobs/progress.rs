@@ -2,14 +2,21 @@
 //! (async: heartbeat, deadline) and the processing step (a blocking thread).
 //!
 //! A blocking thread cannot be killed, so the limit is cooperative: the step
-//! calls [`Progress::enter`] between its stages, which fails with
+//! calls [`Progress::enter`] between its stages, and the reconstruction and
+//! L-system stages also check the deadline between their own steps through
+//! [`Progress::interrupt`] (the pipelines' steps, the writer's passes, each
+//! Re-Pair round; see [`crate::interrupt`]). Either check fails with
 //! [`JobError::TimedOut`] once the deadline has passed, and the worker stops
 //! waiting for the step at the deadline itself (see `Worker::run_step`).
 //! What is bounded: the job's record (failed at the deadline, with the
 //! stage it had reached) and the worker (free for the next job at once).
-//! What is not: the stage running at the deadline goes on to its end on
-//! its blocking thread, then stops at the next stage boundary; its result is
-//! dropped. Each stage is bounded by the input limits (`--max-points`,
+//! What is not: the step running at the deadline goes on to its end on the
+//! blocking thread, and its result is dropped. In reconstruction and
+//! L-system encoding that is one step (one pass of the dense pipeline's
+//! graph, skeletonisation or simplification, of the airborne pipeline's
+//! Algorithm 2, one writing pass or Re-Pair round); reading the scan and
+//! chain-code encoding are not interrupted and run to their end. Each step
+//! is bounded by the input limits (`--max-points`,
 //! [`crate::reconstruct::MAX_TREE_HEIGHT_M`] and
 //! [`crate::reconstruct::MAX_TREE_WIDTH_M`]).
 
@@ -18,6 +25,7 @@ use std::sync::atomic::{AtomicU8, AtomicU32, Ordering};
 use std::time::{Duration, Instant};
 
 use super::JobError;
+use crate::interrupt::{Interrupt, Interrupted};
 
 /// The stages of [`super::process`], in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -110,11 +118,27 @@ impl Progress {
         self.deadline
     }
 
+    /// The deadline as an [`Interrupt`] for the algorithms a stage runs.
+    pub fn interrupt(&self) -> Interrupt {
+        Interrupt::at(self.deadline)
+    }
+
     /// The error of a step stopped at its deadline, in its current stage.
     pub fn timed_out(&self) -> JobError {
         JobError::TimedOut {
             limit_s: self.limit.as_secs_f64(),
             stage: self.stage().name(),
+            step: None,
+        }
+    }
+
+    /// The error of a step that the current stage's own [`Interrupt`]
+    /// stopped, naming the step within the stage.
+    pub fn timed_out_at(&self, interrupted: Interrupted) -> JobError {
+        JobError::TimedOut {
+            limit_s: self.limit.as_secs_f64(),
+            stage: self.stage().name(),
+            step: Some(interrupted.step),
         }
     }
 
@@ -136,6 +160,15 @@ impl Progress {
 }
 
 #[cfg(test)]
+impl Progress {
+    /// Moves the deadline to now, so that the next check fails whatever
+    /// the machine's speed: for tests of checks inside a stage.
+    pub(super) fn expire_now(&mut self) {
+        self.deadline = Some(Instant::now());
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 
@@ -147,7 +180,7 @@ mod tests {
         let late = Progress::with_limit(Some(Duration::ZERO));
         let err = late.enter(Stage::Reading).unwrap_err();
         assert!(
-            matches!(err, JobError::TimedOut { limit_s, stage: "reading the scan" } if limit_s == 0.0),
+            matches!(err, JobError::TimedOut { limit_s, stage: "reading the scan", step: None } if limit_s == 0.0),
             "{err}"
         );
         assert!(err.to_string().contains("time limit of 0"), "{err}");

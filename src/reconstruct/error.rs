@@ -1,7 +1,8 @@
 //! Why a reconstruction could not produce a skeleton.
 
-/// A reconstruction failure; every variant is a property of the input cloud
-/// (or of a pipeline this build does not provide).
+/// A reconstruction failure; every variant but [`ReconstructError::Interrupted`]
+/// is a property of the input cloud (or of a pipeline this build does not
+/// provide).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReconstructError {
     /// Too few points to say anything about a tree.
@@ -67,4 +68,8 @@ pub enum ReconstructError {
     /// A reconstruction parameter is out of its valid range.
     #[error("invalid reconstruction parameters: {0}")]
     InvalidParameter(String),
+    /// The caller's [`crate::interrupt::Interrupt`] stopped the
+    /// reconstruction at a step boundary.
+    #[error("reconstruction {0}")]
+    Interrupted(#[from] crate::interrupt::Interrupted),
 }

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cloud::PointCloud;
 use crate::cloud::clean::{self, Strays};
+use crate::interrupt::Interrupt;
 use crate::skeleton::Skeleton;
 
 pub mod airborne;
@@ -97,6 +98,9 @@ pub struct Options {
     pub radii: radii::Params,
     /// Thresholds of the automatic mode choice.
     pub auto: AutoThresholds,
+    /// When to give up, checked between the steps of the pipelines (never,
+    /// by default).
+    pub interrupt: Interrupt,
 }
 
 /// Thresholds of [`Mode::Auto`]: a cloud is dense when its trunk is seen all
@@ -137,6 +141,9 @@ const AIRBORNE_VOLUME_NOTE: &str = "wood volume is indicative only: an airborne 
      branch sections, so branch radii follow the pipe model from the DBH (on synthetic \
      AHN-like scans it came out 0.3 to 8 times the true volume)";
 
+/// The mode reason of a pipeline the caller chose.
+const REQUESTED: &str = "requested by the caller (--mode on the command line, mode= at upload)";
+
 /// A reconstructed tree.
 #[derive(Debug, Clone)]
 pub struct Reconstruction {
@@ -172,22 +179,24 @@ pub struct Reconstruction {
 /// assert!((tree.skeleton.anchor().origin.x - 155_000.0).abs() < 0.02);
 /// ```
 pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction, ReconstructError> {
+    let interrupt = &opts.interrupt;
     check_points(cloud)?;
+    interrupt.check("stray-return removal")?;
     let cleaned = clean::remove_stray_returns(cloud, STRAY_GAP_M, MAX_STRAY_SHARE);
     let cloud = cleaned.as_ref().map_or(cloud, |(kept, _)| kept);
     validate(cloud)?;
+    interrupt.check("the choice of pipeline")?;
     let (mode, mode_reason) = match opts.mode {
         Mode::Auto => survey(cloud).choose(&opts.auto),
-        Mode::Dense => (Mode::Dense, "requested on the command line".to_string()),
-        Mode::Airborne => (Mode::Airborne, "requested on the command line".to_string()),
+        Mode::Dense | Mode::Airborne => (opts.mode, REQUESTED.to_string()),
     };
     let (mut skeleton, tree_cloud, pipeline_notes) = match mode {
         Mode::Dense | Mode::Auto => {
-            let out = dense::reconstruct(cloud, &opts.dense)?;
+            let out = dense::reconstruct(cloud, &opts.dense, interrupt)?;
             (out.skeleton, out.cloud, out.notes)
         }
         Mode::Airborne => {
-            let out = airborne::reconstruct(cloud, &opts.airborne)?;
+            let out = airborne::reconstruct_within(cloud, &opts.airborne, interrupt)?;
             // The shared radius stage and the metrics see the tree without
             // its ground, relative to the skeleton's anchor like the dense
             // pipeline's output.
@@ -202,6 +211,7 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
         .into_iter()
         .collect();
     notes.extend(pipeline_notes);
+    interrupt.check("crown measurement")?;
     let mut crown = metrics::Crown::measure(&skeleton, &tree_cloud);
     if mode == Mode::Airborne {
         // A sparse scan from above rarely hits the apex itself.
@@ -215,6 +225,7 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
         ));
         crown.height_m += gap;
     }
+    interrupt.check("radius assignment")?;
     let trunk = radii::assign_radii(&mut skeleton, &tree_cloud, &crown, &opts.radii);
     notes.extend(trunk.note());
     if mode == Mode::Airborne {
@@ -616,6 +627,38 @@ mod tests {
             ..Options::default()
         };
         reconstruct(&cloud, &options)
+    }
+
+    /// A passed deadline stops each pipeline at its first step; the default
+    /// interrupt never does.
+    #[test]
+    fn a_passed_deadline_stops_the_pipelines_at_their_first_step() {
+        use crate::interrupt::Interrupted;
+
+        let passed = Interrupt::at(Some(std::time::Instant::now()));
+        let cloud = PointCloud::from_points(DVec3::ZERO, stem(3.0));
+        let options = Options {
+            interrupt: passed,
+            ..Options::default()
+        };
+        let err = reconstruct(&cloud, &options).unwrap_err();
+        let first = Interrupted {
+            step: "stray-return removal",
+        };
+        assert_eq!(err, ReconstructError::Interrupted(first));
+        assert_eq!(
+            err.to_string(),
+            "reconstruction interrupted at its deadline before stray-return removal"
+        );
+        let err = dense::reconstruct(&cloud, &options.dense, &passed).unwrap_err();
+        let step = Interrupted { step: "clean-up" };
+        assert_eq!(err, ReconstructError::Interrupted(step));
+        let err = airborne::reconstruct_within(&cloud, &options.airborne, &passed).unwrap_err();
+        let step = Interrupted {
+            step: "ground separation",
+        };
+        assert_eq!(err, ReconstructError::Interrupted(step));
+        assert!(dense(stem(3.0)).is_ok());
     }
 
     #[test]

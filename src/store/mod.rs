@@ -68,7 +68,7 @@ pub fn now_ms() -> i64 {
 }
 
 const TREE_COLUMNS: &str = "id, external_id, species, crs, x, y, z, height_m, metrics, model_id, \
-     version, created_at_ms, updated_at_ms";
+     model_parameters, version, created_at_ms, updated_at_ms";
 
 /// The conditions of a [`TreeFilter`], parameters `$1`–`$9`; the limit is
 /// `$10` (see [`bind_filter`]).
@@ -421,8 +421,8 @@ impl Store {
                 .await?;
                 sqlx::query(
                     "UPDATE trees SET x = $1, y = $2, z = $3, crs = COALESCE(crs, $4), \
-                     height_m = $5, metrics = $6, model_id = $7, version = version + 1, \
-                     updated_at_ms = $8 WHERE id = $9",
+                     height_m = $5, metrics = $6, model_id = $7, model_parameters = $10, \
+                     version = version + 1, updated_at_ms = $8 WHERE id = $9",
                 )
                 .bind(model.location[0])
                 .bind(model.location[1])
@@ -433,6 +433,7 @@ impl Store {
                 .bind(model_id)
                 .bind(now)
                 .bind(job.tree_id)
+                .bind(&model.parameters)
                 .execute(&mut *tx)
                 .await?;
                 tx.commit().await?;

@@ -26,6 +26,8 @@ pub struct TreeRow {
     pub metrics: Option<String>,
     /// The current model.
     pub model_id: Option<Uuid>,
+    /// Parameters JSON (the reconstruction record) of the current model.
+    pub model_parameters: Option<String>,
     /// Incremented on every change.
     pub version: i64,
     /// Creation time, Unix ms.
@@ -162,7 +164,7 @@ pub struct NewModel {
     pub lsystem: String,
     /// Compressed chain code.
     pub chaincode: Vec<u8>,
-    /// Parameters and error bounds, JSON.
+    /// The reconstruction record (`jobs::ModelRecord`), JSON.
     pub parameters: String,
     /// Tree metrics, JSON.
     pub metrics: String,

@@ -224,6 +224,11 @@ pub async fn assert_problem(res: reqwest::Response, status: u16) -> Value {
 /// A synthetic birch, terrestrially scanned, as LAZ bytes, with its trunk
 /// base at `origin` (EPSG:28992-like coordinates).
 pub fn synthetic_scan(origin: DVec3, seed: u64) -> Vec<u8> {
+    silva::cloud::to_laz_bytes(&synthetic_cloud(origin, seed)).expect("LAZ encoding")
+}
+
+/// The points of [`synthetic_scan`].
+pub fn synthetic_cloud(origin: DVec3, seed: u64) -> silva::cloud::PointCloud {
     let tree = synth::generate(
         &TreeParams::preset(Species::Birch),
         seed,
@@ -232,6 +237,5 @@ pub fn synthetic_scan(origin: DVec3, seed: u64) -> Vec<u8> {
             crs: Some("EPSG:28992".into()),
         },
     );
-    let cloud = synth::simulate_tls(&tree, &TlsOptions::default(), seed);
-    silva::cloud::to_laz_bytes(&cloud).expect("LAZ encoding")
+    synth::simulate_tls(&tree, &TlsOptions::default(), seed)
 }

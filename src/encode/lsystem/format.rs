@@ -43,7 +43,7 @@ impl Symbol {
 }
 
 /// Error statistics and the stated bound, stored in the document.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct ErrorBound {
     /// Stated bound: every decoded node lies within this distance of the
     /// node it encodes, in metres (the writer's tolerance, or the

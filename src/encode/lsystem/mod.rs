@@ -61,6 +61,7 @@ use format::{Dimensions, Symbol};
 use generalise::TipPlan;
 use write::{Favoured, Tolerance, length_unit, shortest_within, write_axiom, write_dimensions};
 
+use crate::interrupt::{Interrupt, Interrupted};
 use crate::skeleton::{Anchor, NodeId, Skeleton, SkeletonError};
 
 /// How [`encode`] writes.
@@ -237,6 +238,21 @@ pub enum LsError {
 /// decoding the document with [`decode`] and comparing node by node.
 /// Nodes are written in canonical order (see [`Skeleton::canonical`]).
 pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
+    match encode_within(skeleton, opts, &Interrupt::never()) {
+        Ok(ls) => ls,
+        // Only a deadline interrupts, and `never` has none.
+        Err(interrupted) => unreachable!("{interrupted}"),
+    }
+}
+
+/// [`encode`], checking `interrupt` before each writing pass, each Re-Pair
+/// round and the measurement of the error; the document is the same when
+/// it is not interrupted.
+pub fn encode_within(
+    skeleton: &Skeleton,
+    opts: &LsOptions,
+    interrupt: &Interrupt,
+) -> Result<LsJson, Interrupted> {
     let canon = skeleton.canonical();
     // The trunk anchor is the root's absolute position, printable exactly;
     // targets are relative to it, computed without cancellation.
@@ -273,15 +289,19 @@ pub fn encode(skeleton: &Skeleton, opts: &LsOptions) -> LsJson {
     };
     // A second pass prefers the parameters that the first turned into
     // rules or defaults; it is kept only when it is shorter.
-    let first = writing.document(&Favoured::default());
-    let second = writing.document(&Favoured::from(first.rules.values(), &first.dimensions));
+    let first = writing.document(&Favoured::default(), interrupt)?;
+    let second = writing.document(
+        &Favoured::from(first.rules.values(), &first.dimensions),
+        interrupt,
+    )?;
     let mut ls = if second.to_json().len() < first.to_json().len() {
         second
     } else {
         first
     };
+    interrupt.check("measuring the L-system's error")?;
     ls.error = measure(&canon, &ls, tolerance, writing.plan.as_ref());
-    ls
+    Ok(ls)
 }
 
 /// What every pass of the writer shares.
@@ -301,7 +321,8 @@ struct Writing<'a> {
 impl Writing<'_> {
     /// Writes the document, preferring `favoured` parameters, then fills in
     /// the defaults and rules; the errors are not measured yet.
-    fn document(&self, favoured: &Favoured) -> LsJson {
+    fn document(&self, favoured: &Favoured, interrupt: &Interrupt) -> Result<LsJson, Interrupted> {
+        interrupt.check("writing the L-system's axiom")?;
         let mut axiom = write_axiom(
             self.canon,
             &self.targets,
@@ -318,8 +339,8 @@ impl Writing<'_> {
             .unwrap_or_default();
         let dimensions = use_defaults(&mut axiom, rules.values_mut(), self.dims.unit_m);
         let mut depth = rules::rule_depths(&rules);
-        rules::compress(&mut axiom, &mut rules, &mut depth);
-        LsJson {
+        rules::compress(&mut axiom, &mut rules, &mut depth, interrupt)?;
+        Ok(LsJson {
             recursions: depth.values().copied().max().unwrap_or(0),
             axiom,
             rules,
@@ -328,7 +349,7 @@ impl Writing<'_> {
             dimensions,
             degrees: true,
             error: ErrorBound::default(),
-        }
+        })
     }
 }
 
@@ -457,4 +478,28 @@ fn measure(
     };
     bound.radius_bound_rel = tolerance.radius_rel;
     bound
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+
+    /// A passed deadline stops the writer before its first pass; without
+    /// one the document is the one [`encode`] writes.
+    #[test]
+    fn a_passed_deadline_stops_the_writer_at_a_step() {
+        let mut tree = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
+        let mut tip = NodeId::ROOT;
+        for i in 1..40 {
+            tip = tree.add_child(tip, Vec3::new(0.0, 0.1 * (i % 2) as f32, i as f32), 0.1);
+        }
+        let opts = LsOptions::default();
+        let passed = Interrupt::at(Some(std::time::Instant::now()));
+        let err = encode_within(&tree, &opts, &passed).unwrap_err();
+        assert_eq!(err.step, "writing the L-system's axiom");
+        let never = encode_within(&tree, &opts, &Interrupt::never()).unwrap();
+        assert_eq!(never.to_json(), encode(&tree, &opts).to_json());
+    }
 }

@@ -13,6 +13,7 @@ use std::collections::{BTreeMap, BinaryHeap, HashMap};
 use std::ops::Range;
 
 use super::format::{Symbol, print};
+use crate::interrupt::{Interrupt, Interrupted};
 
 /// JSON overhead of one rule: `,"X":""`.
 const RULE_OVERHEAD: usize = 7;
@@ -51,12 +52,13 @@ impl Symbols {
 /// Replaces repeated symbols and pairs of `axiom` by rules, using letters
 /// not in `taken` (nor `F`/`f`). `depth` gives, for letters that already have
 /// rules, how many recursions they need; the new rules are added to `rules`
-/// and `depth`.
+/// and `depth`. `interrupt` is checked before each round (one rule each).
 pub(crate) fn compress(
     axiom: &mut Vec<Symbol>,
     rules: &mut BTreeMap<u8, Vec<Symbol>>,
     depth: &mut HashMap<u8, u32>,
-) {
+    interrupt: &Interrupt,
+) -> Result<(), Interrupted> {
     let taken: Vec<u8> = rules.keys().copied().collect();
     let mut free = (b'A'..=b'Z')
         .chain(b'a'..=b'z')
@@ -65,6 +67,7 @@ pub(crate) fn compress(
     let mut ids: Vec<u32> = axiom.iter().map(|s| symbols.id(s)).collect();
     let mut counts = Counts::new(&ids, &symbols);
     while let Some(pattern) = counts.best(&symbols) {
+        interrupt.check("a Re-Pair round of the L-system")?;
         let Some(letter) = free.next() else {
             break;
         };
@@ -81,6 +84,7 @@ pub(crate) fn compress(
         rules.insert(letter, body);
     }
     *axiom = ids.iter().map(|&i| symbols.table[i as usize]).collect();
+    Ok(())
 }
 
 /// A candidate pattern as the search orders ties: `(a, 0)` is the single
@@ -328,7 +332,11 @@ mod tests {
         let mut axiom = original.clone();
         let mut rules = BTreeMap::new();
         let mut depth = HashMap::new();
-        compress(&mut axiom, &mut rules, &mut depth);
+        let passed = Interrupt::at(Some(std::time::Instant::now()));
+        let err = compress(&mut axiom.clone(), &mut rules, &mut depth, &passed).unwrap_err();
+        assert_eq!(err.step, "a Re-Pair round of the L-system");
+        assert!(rules.is_empty());
+        compress(&mut axiom, &mut rules, &mut depth, &Interrupt::never()).unwrap();
         assert!(!rules.is_empty());
         assert!(print(&axiom).len() < text.len());
         let recursions = depth.values().copied().max().unwrap_or(0);

@@ -43,6 +43,7 @@ use glam::{DVec3, Vec3};
 use super::ReconstructError;
 use super::ground::{GroundMethod, GroundSplit, Terrain, split_ground};
 use crate::cloud::PointCloud;
+use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
 
 mod direction;
@@ -207,7 +208,17 @@ pub fn reconstruct(
     cloud: &PointCloud,
     params: &Params,
 ) -> Result<AirborneResult, ReconstructError> {
+    reconstruct_within(cloud, params, &Interrupt::never())
+}
+
+/// [`reconstruct`], checking `interrupt` before each step.
+pub fn reconstruct_within(
+    cloud: &PointCloud,
+    params: &Params,
+    interrupt: &Interrupt,
+) -> Result<AirborneResult, ReconstructError> {
     validate(params)?;
+    interrupt.check("ground separation")?;
     let finite = usable_points(cloud);
     if finite.len() < MIN_TREE_POINTS {
         return Err(ReconstructError::TooFewPoints {
@@ -234,12 +245,14 @@ pub fn reconstruct(
     }
     check_volume(&split.tree.points)?;
 
+    interrupt.check("trunk completion")?;
     let tree = &without_low_outliers(&split, &mut notes);
     super::check_height(tree)?;
     let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
     notes.push(trunk.note());
     let mut points = trunk.points.clone();
     let trunk_points_added = points.len();
+    interrupt.check("thinning and contraction")?;
     let candidates = thin::thin(tree, params.voxel_m);
     points.extend(thin::contract(
         &candidates,
@@ -247,8 +260,11 @@ pub fn reconstruct(
         params.contraction_radius_m,
     ));
 
+    interrupt.check("the neighbour graph")?;
     let adjacency = graph::graph(&points, params.neighbour_radius_m, params.knn);
+    interrupt.check("the direction field")?;
     let field = direction::direction_field(&points, params);
+    interrupt.check("skeleton production (Algorithm 2)")?;
     let produced = skeleton::skeleton_produce(&points, &adjacency, &field, 0, 1, params);
     let share = |n: usize| n as f32 / points.len() as f32;
     notes.push(format!(
@@ -265,6 +281,7 @@ pub fn reconstruct(
         ));
     }
 
+    interrupt.check("skeleton assembly")?;
     let root = points[0];
     let anchor = Anchor {
         origin: finite.offset + root.as_dvec3(),

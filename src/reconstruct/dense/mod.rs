@@ -47,6 +47,7 @@ use glam::Vec3;
 use super::ReconstructError;
 use crate::cloud::clean::voxel_downsample;
 use crate::cloud::{CLASS_GROUND, PointCloud};
+use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
 use crate::spatial::PointIndex;
 
@@ -323,8 +324,14 @@ pub struct DenseOutput {
     pub bin_width_m: f32,
 }
 
-/// Builds the skeleton of the one tree in `cloud` (radii left at 0).
-pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, ReconstructError> {
+/// Builds the skeleton of the one tree in `cloud` (radii left at 0),
+/// checking `interrupt` before each step.
+pub fn reconstruct(
+    cloud: &PointCloud,
+    params: &Params,
+    interrupt: &Interrupt,
+) -> Result<DenseOutput, ReconstructError> {
+    interrupt.check("clean-up")?;
     let mut notes = Vec::new();
     let points = without_ground(cloud, &mut notes);
     let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
@@ -337,6 +344,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         ));
     }
     require_points(points.len())?;
+    interrupt.check("the neighbour graph")?;
     let index = PointIndex::new(&points);
     let spacing = index.median_spacing(&points).unwrap_or(0.0);
     let knn = graph::knn_edges(
@@ -349,6 +357,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     let bin_m = params.bin_width_m.unwrap_or_else(|| {
         (params.bin_spacings * spacing).clamp(params.bin_range_m.0, params.bin_range_m.1)
     });
+    interrupt.check("connecting the graph")?;
     let (points, edges) = connect(points, knn, bin_m, params, &mut notes)?;
     require_points(points.len())?;
     super::check_height(&points)?;
@@ -367,9 +376,11 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         .sum::<glam::Vec2>()
         / sources.len() as f32;
     let root = base_xy.extend(base_z);
+    interrupt.check("the shortest-path tree")?;
     let g = graph::Graph::from_edges(points.len(), &edges);
     drop(edges);
     let (dist, pred) = graph::shortest_path_tree(&g, &sources);
+    interrupt.check("skeletonisation")?;
     let sections = skeletonize::cross_sections(
         &points,
         &g,
@@ -403,6 +414,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
     for node in &mut nodes {
         node.position -= root;
     }
+    interrupt.check("simplification")?;
     let nodes = simplify::merge_close_siblings(nodes, sections.counts, bin_m);
     let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
         .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
@@ -441,6 +453,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         params.simplify_spreads,
     );
     skeleton.order_main_extension_first();
+    interrupt.check("lateral bases")?;
     let skeleton = lateral_base::to_parent_axis(
         &skeleton,
         &lateral_base::BaseRule {
@@ -452,6 +465,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
             snap_m: bin_m,
         },
     );
+    interrupt.check("twin joins")?;
     let mut skeleton = twins::rejoin_twins(
         &skeleton,
         &twins::TwinRule {
@@ -462,6 +476,7 @@ pub fn reconstruct(cloud: &PointCloud, params: &Params) -> Result<DenseOutput, R
         },
     );
     skeleton.order_main_extension_first();
+    interrupt.check("tip placement")?;
     let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
     if params.tips_reach_last_points || params.tips_expected_gap {
         let index = PointIndex::new(&tree_points);
