@@ -372,21 +372,27 @@ pub(crate) fn print(symbols: &[Symbol]) -> String {
 /// Shortest decimal that parses back to exactly `v`, without a leading zero
 /// before the point (`.25`, `-.5`); in exponent form (`5.1e50`) when the
 /// plain form would be longer than the reader takes ([`MAX_NUMBER_CHARS`]).
+/// Written straight into `out`: documents hold a number per symbol, and a
+/// temporary string for each was a tenth of `encode`.
 pub(crate) fn push_number(out: &mut String, v: f64) {
-    let mut text = String::new();
-    write!(text, "{v}").expect("writing to a String cannot fail");
-    if text.len() > MAX_NUMBER_CHARS {
-        text.clear();
-        write!(text, "{v:e}").expect("writing to a String cannot fail");
+    // Whole numbers (lengths in the length unit mostly are) print as the
+    // integer, which `Display` for `f64` also prints.
+    if v.fract() == 0.0 && v.abs() < 1e15 && v != 0.0 {
+        write!(out, "{}", v as i64).expect("writing to a String cannot fail");
+        return;
     }
-    let trimmed = if let Some(rest) = text.strip_prefix("0.") {
-        format!(".{rest}")
-    } else if let Some(rest) = text.strip_prefix("-0.") {
-        format!("-.{rest}")
-    } else {
-        text
-    };
-    out.push_str(&trimmed);
+    let start = out.len();
+    write!(out, "{v}").expect("writing to a String cannot fail");
+    if out.len() - start > MAX_NUMBER_CHARS {
+        out.truncate(start);
+        write!(out, "{v:e}").expect("writing to a String cannot fail");
+    }
+    let text = &out[start..];
+    if text.starts_with("0.") {
+        out.remove(start);
+    } else if text.starts_with("-0.") {
+        out.remove(start + 1);
+    }
 }
 
 #[cfg(test)]

@@ -200,7 +200,7 @@ fn turn_choices(
     let to_deg = |distance_m: f64, lever_m: f64| (distance_m / lever_m.max(1e-300)).to_degrees();
     let angle = |value: f64, signs: (u8, u8), lever_m: f64, out: &mut Vec<Choice>| {
         angle_choices(value, signs, to_deg(fine_m, lever_m), out);
-        favoured.add_near(value, signs.0, signs.1, to_deg(budget_m, lever_m), out);
+        favoured.add_near(value, signs, to_deg(budget_m, lever_m), out);
     };
     ways.count = 0;
     let (roll, pitch) = roll_pitch(turtle, direction, true);
@@ -225,7 +225,17 @@ fn turn_choices(
 /// one keeps the node within its budget, so that they get more frequent
 /// and the rules built afterwards pay more.
 #[derive(Debug, Default)]
-pub(crate) struct Favoured(Vec<Symbol>);
+pub(crate) struct Favoured {
+    /// For each pair of symbols a quantity is written with ([`SIGNS`]),
+    /// the favoured symbols of either and their signed values, in the order
+    /// of the rules and defaults they come from. Kept apart so that each
+    /// quantity scans only its own symbols, not every rule's.
+    by_signs: [Vec<(f64, Symbol)>; SIGNS.len()],
+}
+
+/// The symbols for positive and negative values of each quantity: roll,
+/// pitch, yaw and length.
+const SIGNS: [(u8, u8); 4] = [(b'\\', b'/'), (b'&', b'^'), (b'+', b'-'), (b'F', b'F')];
 
 impl Favoured {
     /// The parametrised symbols of single-symbol rules, and the defaults of
@@ -248,26 +258,37 @@ impl Favoured {
             Symbol::with(b'\\', dims.roll),
             Symbol::with(b'/', dims.roll),
         ]);
-        Favoured(symbols)
+        let by_signs = SIGNS.map(|(positive, negative)| {
+            symbols
+                .iter()
+                .filter_map(|s| {
+                    let p = s.param?;
+                    match s.ch {
+                        c if c == positive => Some((p, *s)),
+                        c if c == negative => Some((-p, *s)),
+                        _ => None,
+                    }
+                })
+                .collect()
+        });
+        Favoured { by_signs }
     }
 
     /// Adds to `out` the favoured symbols for a quantity `value` written
-    /// with `positive` (or `negative` for negative values), within `reach`
-    /// of it.
-    fn add_near(&self, value: f64, positive: u8, negative: u8, reach: f64, out: &mut Vec<Choice>) {
-        let near = self.0.iter().filter_map(|s| {
-            let p = s.param?;
-            let signed = match s.ch {
-                c if c == positive => p,
-                c if c == negative => -p,
-                _ => return None,
-            };
-            ((signed - value).abs() <= reach).then_some(Choice {
-                symbol: Some(*s),
-                cost: 1,
-            })
-        });
-        out.extend(near);
+    /// with `signs` (one of [`SIGNS`]: for positive, negative values),
+    /// within `reach` of it.
+    fn add_near(&self, value: f64, signs: (u8, u8), reach: f64, out: &mut Vec<Choice>) {
+        let Some(i) = SIGNS.iter().position(|&s| s == signs) else {
+            return;
+        };
+        for &(signed, symbol) in &self.by_signs[i] {
+            if (signed - value).abs() <= reach {
+                out.push(Choice {
+                    symbol: Some(symbol),
+                    cost: 1,
+                });
+            }
+        }
     }
 }
 
@@ -348,8 +369,7 @@ pub(crate) fn write_internode(
     length_choices(length / dims.unit_m, fine_m / dims.unit_m, lengths);
     favoured.add_near(
         length / dims.unit_m,
-        b'F',
-        b'F',
+        (b'F', b'F'),
         budget / dims.unit_m,
         lengths,
     );
