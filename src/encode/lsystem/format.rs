@@ -378,7 +378,7 @@ pub(crate) fn push_number(out: &mut String, v: f64) {
     // Whole numbers (lengths in the length unit mostly are) print as the
     // integer, which `Display` for `f64` also prints.
     if v.fract() == 0.0 && v.abs() < 1e15 && v != 0.0 {
-        write!(out, "{}", v as i64).expect("writing to a String cannot fail");
+        push_integer(out, v as i64);
         return;
     }
     let start = out.len();
@@ -393,6 +393,25 @@ pub(crate) fn push_number(out: &mut String, v: f64) {
     } else if text.starts_with("-0.") {
         out.remove(start + 1);
     }
+}
+
+/// Writes `n` in decimal, as `Display` for `i64` does.
+fn push_integer(out: &mut String, n: i64) {
+    let mut digits = [0u8; 20];
+    let mut start = digits.len();
+    let mut rest = n.unsigned_abs();
+    loop {
+        start -= 1;
+        digits[start] = b'0' + (rest % 10) as u8;
+        rest /= 10;
+        if rest == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        out.push('-');
+    }
+    out.push_str(std::str::from_utf8(&digits[start..]).expect("ASCII digits"));
 }
 
 #[cfg(test)]
