@@ -16,6 +16,17 @@ const POW10: [f64; 23] = [
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
 
+/// Powers of ten that `u64` holds (10^0 to 10^19).
+const POW10_U64: [u64; 20] = {
+    let mut p = [1u64; 20];
+    let mut i = 1;
+    while i < p.len() {
+        p[i] = p[i - 1] * 10;
+        i += 1;
+    }
+    p
+};
+
 /// Scaled magnitudes up to here keep a fraction bit, so `floor` and the
 /// half-way test below are exact.
 const EXACT_BELOW: f64 = (1u64 << 52) as f64;
@@ -69,7 +80,9 @@ fn scaled_rounding(value: f64, decimals: usize) -> Option<Rounding> {
         return None;
     }
     let residual = magnitude.mul_add(scale, -scaled);
-    let floor = scaled.floor();
+    // `scaled` is in [0, 2^52): truncation is its floor, without a libm call.
+    let whole = scaled as u64;
+    let floor = whole as f64;
     // Both terms are multiples of the scaled value's ulp, so this is exact,
     // and when not zero it outweighs the residual (at most half an ulp).
     let above_half = (scaled - floor) - 0.5;
@@ -80,7 +93,7 @@ fn scaled_rounding(value: f64, decimals: usize) -> Option<Rounding> {
     } else {
         return None;
     };
-    let n = floor as u64 + u64::from(up);
+    let n = whole + u64::from(up);
     let value = (n as f64 / scale).copysign(value);
     // At most 16 digits, a point and 12 decimals: never the exponent form.
     let magnitude_chars = fixed_chars(n, decimals);
@@ -101,7 +114,8 @@ fn fixed_chars(mut n: u64, mut decimals: usize) -> usize {
         n /= 10;
         decimals -= 1;
     }
-    let integer = n / 10u64.pow(decimals as u32);
+    // `n` < 2^52 < 10^16: beyond the table the integer part is 0.
+    let integer = POW10_U64.get(decimals).map_or(0, |&p| n / p);
     let integer_chars = match (integer, decimals) {
         (0, 0) => 1,
         (0, _) => 0,

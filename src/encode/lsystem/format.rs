@@ -372,21 +372,46 @@ pub(crate) fn print(symbols: &[Symbol]) -> String {
 /// Shortest decimal that parses back to exactly `v`, without a leading zero
 /// before the point (`.25`, `-.5`); in exponent form (`5.1e50`) when the
 /// plain form would be longer than the reader takes ([`MAX_NUMBER_CHARS`]).
+/// Written straight into `out`: documents hold a number per symbol, and
+/// formatting each through temporary strings was 7 % of `encode`.
 pub(crate) fn push_number(out: &mut String, v: f64) {
-    let mut text = String::new();
-    write!(text, "{v}").expect("writing to a String cannot fail");
-    if text.len() > MAX_NUMBER_CHARS {
-        text.clear();
-        write!(text, "{v:e}").expect("writing to a String cannot fail");
+    // Whole numbers (lengths in the length unit mostly are) print as the
+    // integer, which `Display` for `f64` also prints.
+    if v.fract() == 0.0 && v.abs() < 1e15 && v != 0.0 {
+        push_integer(out, v as i64);
+        return;
     }
-    let trimmed = if let Some(rest) = text.strip_prefix("0.") {
-        format!(".{rest}")
-    } else if let Some(rest) = text.strip_prefix("-0.") {
-        format!("-.{rest}")
-    } else {
-        text
-    };
-    out.push_str(&trimmed);
+    let start = out.len();
+    write!(out, "{v}").expect("writing to a String cannot fail");
+    if out.len() - start > MAX_NUMBER_CHARS {
+        out.truncate(start);
+        write!(out, "{v:e}").expect("writing to a String cannot fail");
+    }
+    let text = &out[start..];
+    if text.starts_with("0.") {
+        out.remove(start);
+    } else if text.starts_with("-0.") {
+        out.remove(start + 1);
+    }
+}
+
+/// Writes `n` in decimal, as `Display` for `i64` does.
+fn push_integer(out: &mut String, n: i64) {
+    let mut digits = [0u8; 20];
+    let mut start = digits.len();
+    let mut rest = n.unsigned_abs();
+    loop {
+        start -= 1;
+        digits[start] = b'0' + (rest % 10) as u8;
+        rest /= 10;
+        if rest == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        out.push('-');
+    }
+    out.push_str(std::str::from_utf8(&digits[start..]).expect("ASCII digits"));
 }
 
 #[cfg(test)]

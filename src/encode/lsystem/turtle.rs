@@ -66,6 +66,7 @@ impl TurtleState {
     /// Rotates the frame by `turn`: `+`/`-` about `U` (a positive angle
     /// turns the heading towards `L`), `&`/`^` about `L` and `\`/`/` about
     /// `H` as [`pitch`](Self::pitch) and [`roll`](Self::roll).
+    #[inline]
     pub(crate) fn turn(&mut self, turn: Turn) {
         let Turn {
             axis,
@@ -155,6 +156,7 @@ pub(crate) struct Turn {
 
 impl Turn {
     /// A rotation about `axis` by `angle` radians.
+    #[inline]
     pub(crate) fn new(axis: Axis, angle: f64) -> Self {
         let (sin, cos) = angle.sin_cos();
         Self { axis, sin, cos }
@@ -163,6 +165,7 @@ impl Turn {
     /// The rotation a symbol makes (`+ - | & ^ \ /`), `None` for any other
     /// symbol. Angles are degrees when `degrees`; a symbol without a
     /// parameter takes its default from `dims`.
+    #[inline]
     pub(crate) fn of(s: Symbol, dims: &Dimensions, degrees: bool) -> Option<Self> {
         let angle = |default: f64| {
             let a = s.param.unwrap_or(default);

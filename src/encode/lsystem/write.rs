@@ -23,6 +23,8 @@
 //! is close enough. Zero angles are omitted and `!(w)` is written only when
 //! the decoded width would otherwise leave the radius tolerance.
 
+use std::ops::Range;
+
 use glam::DVec3;
 
 use super::decimal::{number_chars, rounding};
@@ -84,10 +86,16 @@ struct Choice {
     cost: usize,
 }
 
-/// Roundings of a signed angle in degrees, coarse to fine, plus "omit".
-/// Rounding stops once the error it would add is below `fine_deg`.
-fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> Vec<Choice> {
-    let mut out = Vec::with_capacity(MAX_DECIMALS + 4);
+/// Roundings of a signed angle in degrees, coarse to fine, plus "omit",
+/// into `out` (cleared first). Rounding stops once the error it would add
+/// is below `fine_deg`.
+fn angle_choices(
+    angle_deg: f64,
+    (positive, negative): (u8, u8),
+    fine_deg: f64,
+    out: &mut Vec<Choice>,
+) {
+    out.clear();
     out.push(Choice {
         symbol: None,
         cost: 0,
@@ -105,7 +113,7 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
             last = v;
         }
         if (v - angle_deg).abs() <= fine_deg {
-            return out;
+            return;
         }
     }
     let ch = if angle_deg > 0.0 { positive } else { negative };
@@ -113,12 +121,12 @@ fn angle_choices(angle_deg: f64, positive: u8, negative: u8, fine_deg: f64) -> V
         symbol: Some(Symbol::with(ch, angle_deg.abs())),
         cost: json_cost(ch, number_chars(angle_deg.abs())),
     });
-    out
 }
 
-/// Roundings of an internode length in length units, coarse to fine.
-fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
-    let mut out: Vec<Choice> = Vec::with_capacity(MAX_DECIMALS + 4);
+/// Roundings of an internode length in length units, coarse to fine, into
+/// `out` (cleared first).
+fn length_choices(length: f64, fine: f64, out: &mut Vec<Choice>) {
+    out.clear();
     let mut last = f64::NAN;
     for k in 0..=MAX_DECIMALS {
         let rounded = rounding(length, k);
@@ -131,14 +139,13 @@ fn length_choices(length: f64, fine: f64) -> Vec<Choice> {
             last = v;
         }
         if (v - length).abs() <= fine {
-            return out;
+            return;
         }
     }
     out.push(Choice {
         symbol: Some(Symbol::with(b'F', length)),
         cost: json_cost(b'F', number_chars(length)),
     });
-    out
 }
 
 /// Yaw (about `U`, positive left) and then pitch (about the yawed `L`,
@@ -150,6 +157,29 @@ fn yaw_pitch(turtle: &TurtleState, direction: DVec3) -> (f64, f64) {
     let l = direction.dot(turtle.left);
     let u = direction.dot(turtle.up);
     (l.atan2(h).to_degrees(), (-u).atan2(h.hypot(l)).to_degrees())
+}
+
+/// The choices of a first turn and of a pitch for each way to turn, in
+/// buffers kept from one internode to the next.
+#[derive(Default)]
+struct Ways {
+    /// Turn and pitch choices of each way; only the first `count` are in use.
+    lists: [[Vec<Choice>; 2]; 3],
+    count: usize,
+}
+
+impl Ways {
+    /// The ways in use.
+    fn as_slice(&self) -> &[[Vec<Choice>; 2]] {
+        &self.lists[..self.count]
+    }
+
+    /// Starts a new way and returns its (empty) turn and pitch choices.
+    fn push(&mut self) -> &mut [Vec<Choice>; 2] {
+        let way = &mut self.lists[self.count];
+        self.count += 1;
+        way
+    }
 }
 
 /// The equivalent ways to turn the heading onto `direction` (unit) before a
@@ -165,37 +195,29 @@ fn turn_choices(
     length_m: f64,
     (fine_m, budget_m): (f64, f64),
     favoured: &Favoured,
-) -> Vec<[Vec<Choice>; 2]> {
+    ways: &mut Ways,
+) {
     let to_deg = |distance_m: f64, lever_m: f64| (distance_m / lever_m.max(1e-300)).to_degrees();
-    let angle = |value: f64, positive: u8, negative: u8, lever_m: f64| {
-        let mut out = angle_choices(value, positive, negative, to_deg(fine_m, lever_m));
-        favoured.add_near(
-            value,
-            positive,
-            negative,
-            to_deg(budget_m, lever_m),
-            &mut out,
-        );
-        out
+    let angle = |value: f64, signs: (u8, u8), lever_m: f64, out: &mut Vec<Choice>| {
+        angle_choices(value, signs, to_deg(fine_m, lever_m), out);
+        favoured.add_near(value, signs, to_deg(budget_m, lever_m), out);
     };
+    ways.count = 0;
     let (roll, pitch) = roll_pitch(turtle, direction, true);
     let roll_lever = length_m * pitch.to_radians().sin().abs();
-    let roll_then_pitch = |roll: f64, pitch: f64| {
-        [
-            angle(roll, b'\\', b'/', roll_lever),
-            angle(pitch, b'&', b'^', length_m),
-        ]
+    let mut roll_then_pitch = |roll: f64, pitch: f64| {
+        let [turns, pitches] = ways.push();
+        angle(roll, (b'\\', b'/'), roll_lever, turns);
+        angle(pitch, (b'&', b'^'), length_m, pitches);
     };
-    let mut out = vec![roll_then_pitch(roll, pitch)];
+    roll_then_pitch(roll, pitch);
     if roll != 0.0 {
-        out.push(roll_then_pitch(roll - 180.0f64.copysign(roll), -pitch));
+        roll_then_pitch(roll - 180.0f64.copysign(roll), -pitch);
     }
     let (yaw, yaw_pitch) = yaw_pitch(turtle, direction);
-    out.push([
-        angle(yaw, b'+', b'-', length_m),
-        angle(yaw_pitch, b'&', b'^', length_m),
-    ]);
-    out
+    let [yaws, pitches] = ways.push();
+    angle(yaw, (b'+', b'-'), length_m, yaws);
+    angle(yaw_pitch, (b'&', b'^'), length_m, pitches);
 }
 
 /// Parameters that an earlier pass printed as one rule letter or omitted
@@ -203,7 +225,17 @@ fn turn_choices(
 /// one keeps the node within its budget, so that they get more frequent
 /// and the rules built afterwards pay more.
 #[derive(Debug, Default)]
-pub(crate) struct Favoured(Vec<Symbol>);
+pub(crate) struct Favoured {
+    /// For each pair of symbols a quantity is written with ([`SIGNS`]),
+    /// the favoured symbols of either and their signed values, in the order
+    /// of the rules and defaults they come from. Kept apart so that each
+    /// quantity scans only its own symbols, not every rule's.
+    by_signs: [Vec<(f64, Symbol)>; SIGNS.len()],
+}
+
+/// The symbols for positive and negative values of each quantity: roll,
+/// pitch, yaw and length.
+const SIGNS: [(u8, u8); 4] = [(b'\\', b'/'), (b'&', b'^'), (b'+', b'-'), (b'F', b'F')];
 
 impl Favoured {
     /// The parametrised symbols of single-symbol rules, and the defaults of
@@ -226,26 +258,37 @@ impl Favoured {
             Symbol::with(b'\\', dims.roll),
             Symbol::with(b'/', dims.roll),
         ]);
-        Favoured(symbols)
+        let by_signs = SIGNS.map(|(positive, negative)| {
+            symbols
+                .iter()
+                .filter_map(|s| {
+                    let p = s.param?;
+                    match s.ch {
+                        c if c == positive => Some((p, *s)),
+                        c if c == negative => Some((-p, *s)),
+                        _ => None,
+                    }
+                })
+                .collect()
+        });
+        Favoured { by_signs }
     }
 
     /// Adds to `out` the favoured symbols for a quantity `value` written
-    /// with `positive` (or `negative` for negative values), within `reach`
-    /// of it.
-    fn add_near(&self, value: f64, positive: u8, negative: u8, reach: f64, out: &mut Vec<Choice>) {
-        let near = self.0.iter().filter_map(|s| {
-            let p = s.param?;
-            let signed = match s.ch {
-                c if c == positive => p,
-                c if c == negative => -p,
-                _ => return None,
-            };
-            ((signed - value).abs() <= reach).then_some(Choice {
-                symbol: Some(*s),
-                cost: 1,
-            })
-        });
-        out.extend(near);
+    /// with `signs` (one of [`SIGNS`]: for positive, negative values),
+    /// within `reach` of it.
+    fn add_near(&self, value: f64, signs: (u8, u8), reach: f64, out: &mut Vec<Choice>) {
+        let Some(i) = SIGNS.iter().position(|&s| s == signs) else {
+            return;
+        };
+        for &(signed, symbol) in &self.by_signs[i] {
+            if (signed - value).abs() <= reach {
+                out.push(Choice {
+                    symbol: Some(symbol),
+                    cost: 1,
+                });
+            }
+        }
     }
 }
 
@@ -270,6 +313,17 @@ pub(crate) fn roll_pitch(turtle: &TurtleState, direction: DVec3, signed_pitch: b
     (roll, pitch)
 }
 
+/// Buffers the writer keeps from one internode to the next, so that
+/// writing a node allocates nothing: with two passes over every node, the
+/// allocator was a sixth of the writer's time.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    ways: Ways,
+    lengths: Vec<Choice>,
+    search: Search,
+    trials: TrialCache,
+}
+
 /// Appends the cheapest symbols that move `turtle` from its state to within
 /// `budget_m` of `target`, drawing a node, and applies them to `turtle`.
 /// Returns the decoded position error of the new node.
@@ -277,34 +331,51 @@ pub(crate) fn write_internode(
     turtle: &mut TurtleState,
     target: DVec3,
     budget_m: f64,
-    dims: &Dimensions,
-    favoured: &Favoured,
+    (dims, favoured): (&Dimensions, &Favoured),
+    scratch: &mut Scratch,
     out: &mut Vec<Symbol>,
 ) -> f64 {
+    let Scratch {
+        ways,
+        lengths,
+        search,
+        trials: cache,
+    } = scratch;
     let offset = target - turtle.position;
     let length = offset.length();
     let budget = budget_m.max(0.0);
     // A rounding whose own error is this small counts as exact.
     let fine_m = budget * 1e-2;
-    let turns = if length > 0.0 {
-        turn_choices(turtle, offset / length, length, (fine_m, budget), favoured)
+    if length > 0.0 {
+        turn_choices(
+            turtle,
+            offset / length,
+            length,
+            (fine_m, budget),
+            favoured,
+            ways,
+        );
     } else {
         let none = Choice {
             symbol: None,
             cost: 0,
         };
-        vec![[vec![none], vec![none]]]
-    };
-    let mut lengths = length_choices(length / dims.unit_m, fine_m / dims.unit_m);
+        ways.count = 0;
+        for list in ways.push() {
+            list.clear();
+            list.push(none);
+        }
+    }
+    length_choices(length / dims.unit_m, fine_m / dims.unit_m, lengths);
     favoured.add_near(
         length / dims.unit_m,
-        b'F',
-        b'F',
+        (b'F', b'F'),
         budget / dims.unit_m,
-        &mut lengths,
+        lengths,
     );
-    let search = Search::new(&turns, &lengths);
-    let mut trials = Trials::new(turtle, &turns, &lengths, search.triples.len(), dims);
+    let turns = ways.as_slice();
+    search.fill(turns, lengths);
+    let mut trials = Trials::new(turtle, turns, lengths, search.triples.len(), dims, cache);
     let chosen = search
         .find(|c| trials.error(c, target) <= budget)
         // The finest roundings are nearly exact; should even they miss
@@ -335,6 +406,13 @@ struct Trials<'a> {
     start: &'a TurtleState,
     turns: &'a [[Vec<Choice>; 2]],
     dims: &'a Dimensions,
+    cache: &'a mut TrialCache,
+}
+
+/// What [`Trials`] has computed so far for one internode, in buffers kept
+/// for the next.
+#[derive(Default)]
+struct TrialCache {
     /// Step of each length choice, metres (`None` for no `F`).
     steps: Vec<Option<f64>>,
     /// First index of each way's turns, and of its pitches, in the caches.
@@ -343,8 +421,9 @@ struct Trials<'a> {
     turned: Vec<Option<TurtleState>>,
     /// Rotation of each way's pitch choices.
     pitches: Vec<Option<Option<Turn>>>,
-    /// State after each (way, turn, pitch) triple.
-    pitched: Vec<Option<TurtleState>>,
+    /// Heading after each (way, turn, pitch) triple. Turns do not move the
+    /// turtle, so the heading is all a trial needs of the turned state.
+    headings: Vec<Option<DVec3>>,
 }
 
 impl<'a> Trials<'a> {
@@ -354,71 +433,90 @@ impl<'a> Trials<'a> {
         lengths: &[Choice],
         triples: usize,
         dims: &'a Dimensions,
+        cache: &'a mut TrialCache,
     ) -> Self {
-        let mut first = Vec::with_capacity(turns.len());
+        cache.first.clear();
         let (mut turn_count, mut pitch_count) = (0, 0);
         for [turn, pitches] in turns {
-            first.push([turn_count, pitch_count]);
+            cache.first.push([turn_count, pitch_count]);
             turn_count += turn.len();
             pitch_count += pitches.len();
         }
+        cache.steps.clear();
+        cache
+            .steps
+            .extend(lengths.iter().map(|f| f.symbol.map(|s| step_m(s, dims))));
+        reset(&mut cache.turned, turn_count);
+        reset(&mut cache.pitches, pitch_count);
+        reset(&mut cache.headings, triples);
         Self {
             start,
             turns,
             dims,
-            steps: lengths
-                .iter()
-                .map(|f| f.symbol.map(|s| step_m(s, dims)))
-                .collect(),
-            first,
-            turned: vec![None; turn_count],
-            pitches: vec![None; pitch_count],
-            pitched: vec![None; triples],
+            cache,
         }
     }
 
-    /// The state after the turn and pitch of `c`, before its step.
-    fn pitched(&mut self, c: &Combo) -> TurtleState {
-        if let Some(state) = self.pitched[c.pair] {
-            return state;
-        }
+    /// The state after the turn of `c`, and the rotation of its pitch.
+    fn turned(&mut self, c: &Combo) -> (TurtleState, Option<Turn>) {
         let [turn, pitches] = &self.turns[c.way];
-        let [turn_base, pitch_base] = self.first[c.way];
+        let [turn_base, pitch_base] = self.cache.first[c.way];
         let (start, dims) = (self.start, self.dims);
-        let mut state = *self.turned[turn_base + c.turn].get_or_insert_with(|| {
+        let state = *self.cache.turned[turn_base + c.turn].get_or_insert_with(|| {
             let mut t = *start;
             if let Some(s) = turn[c.turn].symbol {
                 t.apply(s, dims, true);
             }
             t
         });
-        let pitch = *self.pitches[pitch_base + c.pitch].get_or_insert_with(|| {
+        let pitch = *self.cache.pitches[pitch_base + c.pitch].get_or_insert_with(|| {
             pitches[c.pitch]
                 .symbol
                 .and_then(|s| Turn::of(s, dims, true))
         });
+        (state, pitch)
+    }
+
+    /// The state after the turn and pitch of `c`, before its step.
+    fn pitched(&mut self, c: &Combo) -> TurtleState {
+        let (mut state, pitch) = self.turned(c);
         if let Some(p) = pitch {
             state.turn(p);
         }
-        self.pitched[c.pair] = Some(state);
         state
     }
 
     /// Distance from the node `c` draws to `target`.
     fn error(&mut self, c: &Combo, target: DVec3) -> f64 {
-        let state = self.pitched(c);
-        let node = self.steps[c.length].map_or(state.position, |l| state.ahead(l));
+        let heading = match self.cache.headings[c.pair] {
+            Some(h) => h,
+            None => {
+                let h = self.pitched(c).heading;
+                self.cache.headings[c.pair] = Some(h);
+                h
+            }
+        };
+        // `TurtleState::ahead` of the pitched state, whose position is the
+        // start's.
+        let position = self.start.position;
+        let node = self.cache.steps[c.length].map_or(position, |l| position + heading * l);
         node.distance(target)
     }
 
     /// The state after all of `c`.
     fn state(&mut self, c: &Combo) -> TurtleState {
         let mut state = self.pitched(c);
-        if let Some(l) = self.steps[c.length] {
+        if let Some(l) = self.cache.steps[c.length] {
             state.forward(l);
         }
         state
     }
+}
+
+/// Empties `cache` and fills it with `len` unknowns, keeping its buffer.
+fn reset<T: Clone>(cache: &mut Vec<Option<T>>, len: usize) {
+    cache.clear();
+    cache.resize(len, None);
 }
 
 /// One combination of a way to turn, its turn and pitch roundings and a
@@ -439,10 +537,14 @@ struct Combo {
 /// cost by cost, without building and sorting every combination: the
 /// triples are grouped by cost once, and those of one total cost are the
 /// groups that complete a length's cost, merged back into loop order. The
-/// cheapest combination that fits is often some ten costs up.
+/// cheapest combination that fits is often some ten costs up. The buffers
+/// are kept from one internode to the next.
+#[derive(Default)]
 struct Search {
     /// The (way, turn, pitch) triples, in loop order.
     triples: Vec<[usize; 3]>,
+    /// Cost of each triple.
+    costs: Vec<usize>,
     /// Indices of the triples ordered by cost, then index.
     by_cost: Vec<u32>,
     /// Where the triples of each cost start in `by_cost`, one past the
@@ -450,41 +552,44 @@ struct Search {
     cost_start: Vec<usize>,
     /// Costs and indices of the length choices, ordered.
     lengths: Vec<(usize, usize)>,
+    /// Runs of equal cost in `lengths`: the cost and the index range.
+    length_runs: Vec<(usize, Range<usize>)>,
+    /// For each length run at the cost being searched: the range of
+    /// `by_cost` not yet merged, and the run.
+    groups: Vec<(Range<usize>, Range<usize>)>,
 }
 
 impl Search {
-    fn new(turns: &[[Vec<Choice>; 2]], lengths: &[Choice]) -> Self {
-        let count = turns.iter().map(|[t, p]| t.len() * p.len()).sum();
-        let mut triples = Vec::with_capacity(count);
-        let mut costs = Vec::with_capacity(count);
+    /// Prepares the search over `turns` and `lengths`.
+    fn fill(&mut self, turns: &[[Vec<Choice>; 2]], lengths: &[Choice]) {
+        self.triples.clear();
+        self.costs.clear();
         for (way, [turn, pitches]) in turns.iter().enumerate() {
             for (ti, r) in turn.iter().enumerate() {
                 for (pi, p) in pitches.iter().enumerate() {
-                    triples.push([way, ti, pi]);
-                    costs.push(r.cost + p.cost);
+                    self.triples.push([way, ti, pi]);
+                    self.costs.push(r.cost + p.cost);
                 }
             }
         }
-        let (by_cost, cost_start) = counting_sort(&costs);
-        let mut lengths: Vec<(usize, usize)> = lengths
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (f.cost, i))
-            .collect();
-        lengths.sort_unstable();
-        Self {
-            triples,
-            by_cost,
-            cost_start,
-            lengths,
+        counting_sort(&self.costs, &mut self.by_cost, &mut self.cost_start);
+        self.lengths.clear();
+        self.lengths
+            .extend(lengths.iter().enumerate().map(|(i, f)| (f.cost, i)));
+        self.lengths.sort_unstable();
+        self.length_runs.clear();
+        let mut from = 0;
+        for run in self.lengths.chunk_by(|a, b| a.0 == b.0) {
+            self.length_runs.push((run[0].0, from..from + run.len()));
+            from += run.len();
         }
     }
 
-    /// Indices of the triples of cost `cost`, in loop order.
-    fn triples_at(&self, cost: usize) -> &[u32] {
+    /// Range in `by_cost` of the triples of cost `cost`, in loop order.
+    fn triples_at(&self, cost: usize) -> Range<usize> {
         match (self.cost_start.get(cost), self.cost_start.get(cost + 1)) {
-            (Some(&from), Some(&to)) => &self.by_cost[from..to],
-            _ => &[],
+            (Some(&from), Some(&to)) => from..to,
+            _ => 0..0,
         }
     }
 
@@ -500,37 +605,40 @@ impl Search {
     }
 
     /// The cheapest combination (first in loop order) that `fits`.
-    fn find(&self, mut fits: impl FnMut(&Combo) -> bool) -> Option<Combo> {
+    fn find(&mut self, mut fits: impl FnMut(&Combo) -> bool) -> Option<Combo> {
         let (cheapest, dearest) = self.cost_range();
-        let mut groups: Vec<Group> = Vec::new();
-        for cost in cheapest..=dearest {
+        let mut groups = std::mem::take(&mut self.groups);
+        let mut found = None;
+        'costs: for cost in cheapest..=dearest {
             groups.clear();
-            for lengths in self.lengths.chunk_by(|a, b| a.0 == b.0) {
-                let Some(turn_cost) = cost.checked_sub(lengths[0].0) else {
+            for (length_cost, run) in &self.length_runs {
+                let Some(turn_cost) = cost.checked_sub(*length_cost) else {
                     break;
                 };
                 let triples = self.triples_at(turn_cost);
                 if !triples.is_empty() {
-                    groups.push((triples, lengths));
+                    groups.push((triples, run.clone()));
                 }
             }
             // A triple has one cost, so it is in at most one group.
-            while let Some((triples, lengths)) = groups
+            while let Some((triples, run)) = groups
                 .iter_mut()
                 .filter(|(t, _)| !t.is_empty())
-                .min_by_key(|(t, _)| t[0])
+                .min_by_key(|(t, _)| self.by_cost[t.start])
             {
-                let pair = triples[0];
-                *triples = &triples[1..];
-                for &(_, length) in *lengths {
+                let pair = self.by_cost[triples.start];
+                triples.start += 1;
+                for &(_, length) in &self.lengths[run.clone()] {
                     let combo = self.combo(pair, length);
                     if fits(&combo) {
-                        return Some(combo);
+                        found = Some(combo);
+                        break 'costs;
                     }
                 }
             }
         }
-        None
+        self.groups = groups;
+        found
     }
 
     /// Cheapest and dearest total costs.
@@ -547,37 +655,38 @@ impl Search {
     /// The most expensive combination, last in loop order.
     fn last(&self) -> Combo {
         let max_turn = self.cost_start.len() - 2;
-        let pair = *self
-            .triples_at(max_turn)
+        let pair = self.by_cost[self.triples_at(max_turn)]
             .last()
+            .copied()
             .expect("there is always at least one combination");
         let &(_, length) = self.lengths.last().expect("there is always a length");
         self.combo(pair, length)
     }
 }
 
-/// For one length cost at one total cost: the triples of the complementary
-/// cost not yet merged, and the lengths.
-type Group<'s> = (&'s [u32], &'s [(usize, usize)]);
-
-/// Indices of `costs` ordered by cost, then index, and where each cost
-/// starts among them (one past the dearest at the end).
-fn counting_sort(costs: &[usize]) -> (Vec<u32>, Vec<usize>) {
+/// Writes into `order` the indices of `costs` ordered by cost, then index,
+/// and into `start` where each cost starts among them (one past the dearest
+/// at the end).
+fn counting_sort(costs: &[usize], order: &mut Vec<u32>, start: &mut Vec<usize>) {
     let dearest = costs.iter().copied().max().unwrap_or(0);
-    let mut start = vec![0; dearest + 2];
+    start.clear();
+    start.resize(dearest + 2, 0);
     for &c in costs {
         start[c + 1] += 1;
     }
     for c in 1..start.len() {
         start[c] += start[c - 1];
     }
-    let mut next = start.clone();
-    let mut order = vec![0; costs.len()];
+    order.clear();
+    order.resize(costs.len(), 0);
+    // Each cost's next free slot, moving `start` up by one cost.
     for (i, &c) in costs.iter().enumerate() {
-        order[next[c]] = i as u32;
-        next[c] += 1;
+        order[start[c]] = i as u32;
+        start[c] += 1;
     }
-    (order, start)
+    // Now `start[c]` is where cost c + 1 starts: shift back.
+    start.rotate_right(1);
+    start[0] = 0;
 }
 
 /// Appends `!(w)` if the decoded width is further than the radius budget
@@ -674,6 +783,7 @@ pub(crate) fn write_axiom(
     let mut turtle = TurtleState::start(trunk_radius_m);
     let mut saved: Vec<TurtleState> = Vec::new();
     let mut work: Vec<Work> = Vec::new();
+    let mut scratch = Scratch::default();
     push_children(skeleton, NodeId::ROOT, &mut work);
     while let Some(item) = work.pop() {
         match item {
@@ -704,8 +814,8 @@ pub(crate) fn write_axiom(
                     &mut turtle,
                     target,
                     tolerance.position_budget(target),
-                    dims,
-                    favoured,
+                    (dims, favoured),
+                    &mut scratch,
                     &mut out,
                 );
                 push_children(skeleton, id, &mut work);
