@@ -20,7 +20,10 @@
 //!    pieces of a thick stem's ring joined through paths in the
 //!    neighbouring bins ([`Params::ring_window_bins`]), except the points
 //!    that lie well outside the circle fitted to the ring, a twig running
-//!    along the bark ([`Params::ring_outlier_m`]);
+//!    along the bark ([`Params::ring_outlier_m`]); and, through
+//!    `fork_rings`, a section that holds both stems of a narrow fork split
+//!    in two when two circles fit it much better than one
+//!    ([`Params::split_two_stems`]);
 //! 4. `simplify`: near-duplicate children merged, noisy branches dropped
 //!    (shorter than a few bins by subtree length; on thick stems, spurs
 //!    from the axis out to a piece of the stem's own bark; or, when
