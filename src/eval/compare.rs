@@ -37,7 +37,8 @@ pub struct SkeletonComparison {
     /// Share of the reconstruction length within the tolerance of the truth.
     pub precision: f32,
     /// Recall over the visible (radius-filtered) truth only: samples inside
-    /// thicker truth wood ([`hidden`]) left out. A diagnostic, not a target.
+    /// thicker truth wood (see the module docs) left out. A diagnostic, not a
+    /// target.
     pub visible_recall: f32,
     /// Share of the radius-filtered truth length that is hidden inside
     /// thicker truth wood.
