@@ -22,8 +22,9 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 
 use super::graph::UnionFind;
+use super::skeletonize::{Across, band_axis};
+use crate::reconstruct::principal_spreads;
 use crate::reconstruct::radii::{Circle, kasa_fit};
-use crate::reconstruct::{least_spread_axis, principal_spreads};
 
 /// Which sections [`split_two_stem_sections`] tries, and when it splits.
 #[derive(Debug, Clone, Copy)]
@@ -37,10 +38,6 @@ pub(super) struct TwoStemRule {
     /// share of the single circle's.
     pub(super) max_deviation_share: f32,
 }
-
-/// A section's points lie in a flat band across their stem when the least
-/// spread is under this share of the middle one (as in `band_axis`).
-const BAND_FLATNESS: f64 = 0.5;
 
 /// The points of a split section lie, on average, within this share of the
 /// thinner circle's radius from their circles. On the clean synthetic oaks
@@ -100,15 +97,16 @@ pub(super) fn split_two_stem_sections(
     out
 }
 
-/// For each point of a thick, flat section, which of two stems it belongs
-/// to, or `None` when one ring explains the section as well.
+/// For each point of a thick section that forms a flat band (see
+/// [`band_axis`]), which of two stems it belongs to, or `None` when one
+/// ring explains the section as well.
 fn two_stems(pts: &[Vec3], rule: &TwoStemRule) -> Option<Vec<bool>> {
     let [largest, middle, least] = principal_spreads(pts);
     let spread = (largest * largest + middle * middle + least * least).sqrt();
-    if spread < f64::from(rule.min_spread_m) || least >= BAND_FLATNESS * middle {
+    if spread < f64::from(rule.min_spread_m) {
         return None;
     }
-    let flat = across(pts, least_spread_axis(pts)?);
+    let flat = Across::new(pts, band_axis(pts)?).flat(pts);
     let one = kasa_fit(&flat)?;
     let one_deviation = flat.iter().map(|&q| deviation(q, &one)).sum::<f32>() / flat.len() as f32;
     let mut halves = initial_halves(&flat);
@@ -163,16 +161,6 @@ fn spans_both(flat: &[Vec2], a: &Circle, b: &Circle) -> bool {
         });
     let (far_a, far_b) = (-a.radius, a.centre.distance(b.centre) + b.radius);
     lo <= far_a + SPAN_SLACK * a.radius && hi >= far_b - SPAN_SLACK * b.radius
-}
-
-/// The points in the plane across `axis`, about their mean.
-fn across(pts: &[Vec3], axis: Vec3) -> Vec<Vec2> {
-    let mean = pts.iter().copied().sum::<Vec3>() / pts.len() as f32;
-    let e1 = axis.any_orthonormal_vector();
-    let e2 = axis.cross(e1);
-    pts.iter()
-        .map(|&p| Vec2::new((p - mean).dot(e1), (p - mean).dot(e2)))
-        .collect()
 }
 
 /// The two ends of the band's long direction.

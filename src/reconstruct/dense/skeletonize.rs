@@ -320,20 +320,15 @@ fn ring_of(pts: &[Vec3]) -> Option<Ring> {
         return None;
     }
     let axis = least_spread_axis(pts)?;
-    let mean = pts.iter().copied().sum::<Vec3>() / pts.len() as f32;
-    let e1 = axis.any_orthonormal_vector();
-    let e2 = axis.cross(e1);
-    let flat: Vec<Vec2> = pts
-        .iter()
-        .map(|&p| Vec2::new((p - mean).dot(e1), (p - mean).dot(e2)))
-        .collect();
+    let plane = Across::new(pts, axis);
+    let flat = plane.flat(pts);
     let circle = kasa_fit(&flat)?;
     let extent = flat.iter().map(|q| q.length()).fold(0.0, f32::max);
     if !(circle.radius.is_finite() && circle.radius < 2.0 * extent) {
         return None;
     }
     let mut ring = Ring {
-        centre: mean + e1 * circle.centre.x + e2 * circle.centre.y,
+        centre: plane.lift(circle.centre),
         axis,
         radius_m: circle.radius,
         tolerance_m: 0.0,
@@ -499,11 +494,42 @@ const BAND_FLATNESS: f64 = 0.5;
 /// down the stem by up to its radius (folds in the trunk: 30 of 249 thick
 /// internodes of the clean synthetic oak s1 turned back by more than 90°,
 /// 12 with the band's axis).
-fn band_axis(section: &[Vec3]) -> Option<Vec3> {
+pub(super) fn band_axis(section: &[Vec3]) -> Option<Vec3> {
     let [_, middle, least] = principal_spreads(section);
     (least < BAND_FLATNESS * middle)
         .then(|| least_spread_axis(section))
         .flatten()
+}
+
+/// The plane across a section's axis through its points' mean, with
+/// coordinates `e1`, `e2` in it: where circles are fitted to a section.
+pub(super) struct Across {
+    mean: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+}
+
+impl Across {
+    pub(super) fn new(pts: &[Vec3], axis: Vec3) -> Self {
+        let e1 = axis.any_orthonormal_vector();
+        Self {
+            mean: pts.iter().copied().sum::<Vec3>() / pts.len() as f32,
+            e1,
+            e2: axis.cross(e1),
+        }
+    }
+
+    /// The points' coordinates in the plane.
+    pub(super) fn flat(&self, pts: &[Vec3]) -> Vec<Vec2> {
+        pts.iter()
+            .map(|&p| Vec2::new((p - self.mean).dot(self.e1), (p - self.mean).dot(self.e2)))
+            .collect()
+    }
+
+    /// The point of the plane at coordinates `q`.
+    pub(super) fn lift(&self, q: Vec2) -> Vec3 {
+        self.mean + self.e1 * q.x + self.e2 * q.y
+    }
 }
 
 /// Per cross-section (indexed by union-find root): the point closest to the
