@@ -267,16 +267,6 @@ impl Store {
         })
     }
 
-    /// The parameters JSON of a model.
-    pub async fn model_parameters(&self, model_id: Uuid) -> Result<Option<String>, StoreError> {
-        Ok(on_pool!(self, pool => {
-            sqlx::query_scalar("SELECT parameters FROM models WHERE id = $1")
-                .bind(model_id)
-                .fetch_optional(pool)
-                .await?
-        }))
-    }
-
     /// The LAZ bytes of a scan.
     pub async fn scan_cloud(&self, scan_id: Uuid) -> Result<Option<Vec<u8>>, StoreError> {
         Ok(on_pool!(self, pool => {
