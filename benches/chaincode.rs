@@ -9,7 +9,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use silva::encode::chaincode::{ChainCode, ChainOptions, Limits, Resolution, decode, encode};
+use silva::encode::chaincode::{
+    ChainCode, ChainOptions, Limits, RadiusLayout, Resolution, decode, encode,
+};
 
 #[allow(dead_code)]
 #[path = "../tests/chaincode_support/mod.rs"]
@@ -70,6 +72,15 @@ fn chaincode(c: &mut Criterion) {
                 let code = ChainCode::decompress(black_box(bytes), &limits).expect("valid");
                 decode(&code).expect("valid")
             })
+        });
+    }
+    // Decompressing each radius layout of kind 3 (the same code), one run.
+    for layout in RadiusLayout::ALL {
+        let bytes = code
+            .compress_split_with(layout)
+            .expect("the encoder's move order");
+        group.bench_function(format!("decompress radii {layout:?}"), |b| {
+            b.iter(|| ChainCode::decompress(black_box(&bytes), &limits).expect("valid"))
         });
     }
     group.finish();

@@ -77,6 +77,24 @@ fn main() {
             sz.radius_bits / 8,
             sz.radius_bits as f64 / 8.0 / n,
         );
+        let layouts: Vec<String> = chaincode::RadiusLayout::ALL
+            .into_iter()
+            .filter_map(|l| {
+                let bytes = code.compress_split_with(l)?;
+                Some(format!(
+                    "{l:?} {} B ({:.3})",
+                    bytes.len(),
+                    bytes.len() as f64 / n
+                ))
+            })
+            .collect();
+        if !layouts.is_empty() {
+            println!(
+                "  kind 3 by radius layout (written: {:?}): {}",
+                sz.radius_layout,
+                layouts.join(", ")
+            );
+        }
         if let Some(v1) = code.compress_split_v1() {
             println!(
                 "  container version 1 split form (kind 2): {} B = {:.3} B/in",

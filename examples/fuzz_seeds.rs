@@ -83,6 +83,13 @@ fn main() {
             &format!("{name}.k1"),
             &single,
         );
+        for layout in chaincode::RadiusLayout::ALL {
+            let bytes = code
+                .compress_split_with(layout)
+                .expect("the encoder's move order");
+            let name = format!("{name}-radii{}.k3", layout.byte());
+            write(&root.join("chaincode_stream"), &name, &bytes);
+        }
 
         let ls = lsystem::encode(tree, &LsOptions::default()).to_json();
         let rules = LsOptions {

@@ -6,8 +6,8 @@ mod chaincode_support;
 use chaincode_support::{botanical_tree, random_skeleton};
 use proptest::prelude::*;
 use silva::encode::chaincode::{
-    self, ChainCode, ChainError, ChainOptions, Limits, Resolution, Voxelisation, decode, encode,
-    encode_order, prune_like_lod, reduce_lod,
+    self, ChainCode, ChainError, ChainOptions, Limits, RadiusLayout, Resolution, Voxelisation,
+    decode, encode, encode_order, prune_like_lod, reduce_lod,
 };
 use silva::{NodeId, Skeleton};
 
@@ -89,10 +89,15 @@ fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
         ChainCode::from_bytes(&code.to_bytes(), &limits).unwrap(),
         code
     );
-    assert_eq!(
-        ChainCode::decompress(&code.compress(), &limits).unwrap(),
-        code
-    );
+    let best = code.compress();
+    assert_eq!(ChainCode::decompress(&best, &limits).unwrap(), code);
+    // Every radius layout of kind 3 round-trips; `compress` is no longer.
+    for layout in RadiusLayout::ALL {
+        let split = code.compress_split_with(layout).expect("encoder's order");
+        assert_eq!(split[5], 3);
+        assert_eq!(ChainCode::decompress(&split, &limits).unwrap(), code);
+        assert!(best.len() <= split.len(), "{layout:?}");
+    }
     code
 }
 
@@ -144,7 +149,8 @@ proptest! {
         let s = random_skeleton(seed, 60);
         let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
         let limits = Limits::default();
-        for mut bytes in [code.to_bytes(), code.compress()] {
+        let child_predicted = code.compress_split_with(RadiusLayout::ChildPredicted).unwrap();
+        for mut bytes in [code.to_bytes(), code.compress(), child_predicted] {
             for &(at, x) in &flips {
                 let n = bytes.len();
                 bytes[at % n] ^= x;
@@ -333,6 +339,39 @@ fn kind_3_is_shorter_than_kind_2_on_irregular_and_botanical_trees() {
         let v1 = code.compress_split_v1().unwrap().len();
         let now = code.compress().len();
         assert!(now < v1, "kind 3 {now} B, kind 2 {v1} B");
+    }
+}
+
+#[test]
+fn child_predicted_radii_are_chosen_on_pipe_model_trees() {
+    // Pipe-model radii never grow towards the tips: each node is predicted
+    // from its thickest child (radius layout 2) more cheaply than from its
+    // tip (layout 0) or its fork (layout 1) once the first child is not
+    // always the thickest, as in reconstructions (on ahn3_delft at 84 of 459
+    // forks): here at every other fork.
+    let limits = Limits::default();
+    for seed in 1..4 {
+        let mut s = botanical_tree(seed, 1500);
+        for id in s.ids().filter(|id| id.index() % 2 == 1) {
+            let mut kids = s.children(id).to_vec();
+            if kids.len() > 1 {
+                kids.reverse();
+                s.set_children_order(id, kids);
+            }
+        }
+        let code = encode(&s, &ChainOptions::default()).unwrap();
+        let best = code.compress();
+        assert_eq!(
+            code.compressed_sizes().radius_layout,
+            Some(RadiusLayout::ChildPredicted)
+        );
+        let child = code.compress_split_with(RadiusLayout::ChildPredicted);
+        assert_eq!(Some(&best), child.as_ref());
+        for other in [RadiusLayout::TipFirst, RadiusLayout::ParentPredicted] {
+            let other = code.compress_split_with(other).unwrap().len();
+            assert!(best.len() < other, "{} B, not below {other} B", best.len());
+        }
+        assert_eq!(ChainCode::decompress(&best, &limits).unwrap(), code);
     }
 }
 

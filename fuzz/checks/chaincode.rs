@@ -4,7 +4,7 @@
 //! compose. Included by `fuzz_targets/chaincode.rs` and
 //! `fuzz_targets/chaincode_stream.rs` with `#[path]`.
 
-use silva::encode::chaincode::{ChainCode, Limits, decode, reduce_lod};
+use silva::encode::chaincode::{ChainCode, Limits, RadiusLayout, decode, reduce_lod};
 
 /// Round trips through the plain form and the compressed kinds, and checks
 /// that decoding and LOD reduction stay consistent with the code.
@@ -18,6 +18,12 @@ pub fn check_accepted(code: &ChainCode, limits: &Limits) {
     if let Some(split) = code.compress_split() {
         let back = ChainCode::decompress(&split, limits);
         assert_eq!(back.as_ref(), Ok(code), "kind 3 round trip");
+    }
+    for layout in RadiusLayout::ALL {
+        if let Some(split) = code.compress_split_with(layout) {
+            let back = ChainCode::decompress(&split, limits);
+            assert_eq!(back.as_ref(), Ok(code), "kind 3 round trip, {layout:?}");
+        }
     }
     if let Some(split) = code.compress_split_v1() {
         let back = ChainCode::decompress(&split, limits);

@@ -30,7 +30,7 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
-use super::split::Form;
+use super::split::{Form, RadiusLayout};
 use super::{
     ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf, split,
 };
@@ -125,9 +125,20 @@ impl ChainCode {
     /// [`ChainCode::decompress`] reads it; [`ChainCode::compress`] uses it
     /// when it is shorter than kind 1.
     pub fn compress_split(&self) -> Option<Vec<u8>> {
-        split::compress_payload(self, Form::Kind3).map(|payload| {
+        self.split_bytes(None)
+    }
+
+    /// Kind 3 with the given radius layout instead of the shortest, or
+    /// `None` as for [`ChainCode::compress_split`]. For tests and fuzzing:
+    /// every layout must stay readable.
+    pub fn compress_split_with(&self, radii: RadiusLayout) -> Option<Vec<u8>> {
+        self.split_bytes(Some(radii))
+    }
+
+    fn split_bytes(&self, radii: Option<RadiusLayout>) -> Option<Vec<u8>> {
+        split::build(self, Form::Kind3, radii).map(|built| {
             let mut out = self.header_bytes(KIND_SPLIT_3);
-            out.extend(payload);
+            out.extend(built.payload);
             out
         })
     }
@@ -137,10 +148,10 @@ impl ChainCode {
     /// [`ChainCode::decompress`] still reads it; nothing writes it by
     /// default. Kept to test and fuzz the reader of stored version-1 codes.
     pub fn compress_split_v1(&self) -> Option<Vec<u8>> {
-        split::compress_payload(self, Form::Kind2).map(|payload| {
+        split::build(self, Form::Kind2, None).map(|built| {
             let mut out = self.header_bytes(KIND_SPLIT);
             out[MAGIC.len()] = VERSION_1;
-            out.extend(payload);
+            out.extend(built.payload);
             out
         })
     }
@@ -184,8 +195,10 @@ impl ChainCode {
     pub fn compressed_sizes(&self) -> CompressedSizes {
         let total = self.compress();
         let header_bytes = self.header_bytes(total[5]).len();
-        let [structure_bits, move_bits, radius_bits] = if total[5] == KIND_SPLIT_3 {
-            split::stream_bits(self, Form::Kind3).expect("the split form was written")
+        let ([structure_bits, move_bits, radius_bits], radius_layout) = if total[5] == KIND_SPLIT_3
+        {
+            let built = split::build(self, Form::Kind3, None).expect("the split form was written");
+            (built.bits, built.radii)
         } else {
             let (last, _) = bwt::bwt_forward(&self.symbols, ALPHABET);
             let indices = mtf::mtf_forward(&last, ALPHABET);
@@ -194,7 +207,10 @@ impl ChainCode {
             interpolative::encode_into(&mut w, &code_sums, MAX_SYMBOL_GAP);
             let symbol_bits = w.bit_len();
             let payload_bits = (total.len() - header_bytes) as u64 * 8;
-            [0, symbol_bits, payload_bits.saturating_sub(symbol_bits)]
+            (
+                [0, symbol_bits, payload_bits.saturating_sub(symbol_bits)],
+                None,
+            )
         };
         let payload = (structure_bits + move_bits + radius_bits).div_ceil(8) as usize;
         CompressedSizes {
@@ -205,6 +221,7 @@ impl ChainCode {
             structure_bits,
             move_bits,
             radius_bits,
+            radius_layout,
         }
     }
 
@@ -329,6 +346,8 @@ pub struct CompressedSizes {
     pub move_bits: u64,
     /// The radius codes (kind 1: with the bit stream's padding).
     pub radius_bits: u64,
+    /// Kind 3: the radius layout written; `None` for kind 1.
+    pub radius_layout: Option<RadiusLayout>,
 }
 
 /// True if `bytes` start like a chain code stream of either kind.

@@ -33,9 +33,10 @@
 //!   cumulative sums and binary interpolative coding, applied either to the
 //!   whole symbol string (kind 1, the paper's form) or, shorter on irregular
 //!   skeletons, to split streams: tips, forks and lateral counts, per-axis
-//!   corrections of branch-first and continuation internodes, and radii
-//!   predicted from the fork node or tip-first (kind 3, `split.rs`; kind 2
-//!   of container version 1 is still read).
+//!   corrections of branch-first and continuation internodes, and radii in
+//!   the shortest [`RadiusLayout`]: tip-first, predicted from the fork node,
+//!   or from the thickest child (kind 3, `split.rs`; kind 2 of container
+//!   version 1 is still read).
 //! - **Error bound.** Every decoded node lies within `√3·d/2` of its original
 //!   position, independently of its depth (no drift: the voxel coordinates are
 //!   exact integers). Each radius is within `radius_step_m / 2`.
@@ -85,6 +86,7 @@ pub use dbf6::{decode, encode, encode_order};
 pub use interpolative::{bic_decode, bic_encode};
 pub use lod::{lod_thresholds, prune_like_lod, reduce_lod};
 pub use mtf::{mtf_forward, mtf_inverse};
+pub use split::RadiusLayout;
 pub use stats::{ChainStats, LOD_LEVELS, LodStats, stats, stats_with};
 
 /// Move one voxel in +x.

@@ -150,6 +150,103 @@ pub(crate) fn radii_from_parent_gaps(
     (bases.next().is_none() && along.next().is_none()).then_some(out)
 }
 
+/// The largest first-node radius of the lateral branches at each node (0
+/// where none grows), for [`child_gaps`].
+fn thickest_laterals(
+    radii_of_first: impl Iterator<Item = u32>,
+    parents: &[Option<usize>],
+    n: usize,
+) -> Option<Vec<u32>> {
+    let mut out = vec![0u32; n];
+    for (q, parent) in radii_of_first.zip(parents) {
+        if let Some(p) = *parent {
+            let slot = out.get_mut(p)?;
+            *slot = (*slot).max(q);
+        }
+    }
+    Some(out)
+}
+
+/// Child-predicted radius gaps (container kind 3, radius layout 2): a node
+/// is predicted to be as thick as its thickest child, because radii never
+/// grow towards the tips (the pipe model of airborne-lidar-tree-modeling
+/// §5.5: a segment's cross-section feeds all of its children's, so it is at
+/// least each one's; the reconstruction enforces it). Returns `(tips,
+/// inner)`: each branch's tip radius (the same values as the tip-first
+/// layout's), and for every other node, in decoding order, its radius minus
+/// the largest radius among its children (main extension and laterals):
+/// mostly 0, and at a fork what the pipe adds to the thickest child.
+/// Integer `max` and subtraction only, so every machine decodes the same.
+pub(crate) fn child_gaps(
+    radii: &[u32],
+    chains: &[usize],
+    parents: &[Option<usize>],
+) -> (Vec<i64>, Vec<i64>) {
+    let firsts = chain_starts(chains).map(|s| radii[s]);
+    let laterals =
+        thickest_laterals(firsts, parents, radii.len()).expect("parents are nodes of the code");
+    let mut tips = Vec::with_capacity(chains.len());
+    let mut inner = Vec::with_capacity(radii.len());
+    for (start, &len) in chain_starts(chains).zip(chains) {
+        for i in start..start + len - 1 {
+            let thickest = radii[i + 1].max(laterals[i]);
+            inner.push(i64::from(radii[i]) - i64::from(thickest));
+        }
+        tips.push(i64::from(radii[start + len - 1]));
+    }
+    (tips, inner)
+}
+
+/// The first node of each chain, in decoding order.
+fn chain_starts(chains: &[usize]) -> impl Iterator<Item = usize> + '_ {
+    chains.iter().scan(0usize, |start, &len| {
+        let s = *start;
+        *start += len;
+        Some(s)
+    })
+}
+
+/// Inverts [`child_gaps`], from the last branch back to the trunk and from
+/// each tip back to its branch's base (every child is decoded before its
+/// parent). `None` if a radius leaves `0..=2^30`, a parent is not a node of
+/// an earlier branch, a chain is empty or a list has the wrong length.
+pub(crate) fn radii_from_child_gaps(
+    (tips, inner): (&[i64], &[i64]),
+    chains: &[usize],
+    parents: &[Option<usize>],
+) -> Option<Vec<u32>> {
+    let n = inner.len().checked_add(tips.len())?;
+    if tips.len() != chains.len() || parents.len() != chains.len() {
+        return None;
+    }
+    let starts: Vec<usize> = chain_starts(chains).collect();
+    if chains.iter().try_fold(0usize, |a, &l| a.checked_add(l)) != Some(n) {
+        return None;
+    }
+    let checked = |r: i64| (0..=MAX_Q as i64).contains(&r).then_some(r as u32);
+    let mut out = vec![0u32; n];
+    let mut laterals = vec![0u32; n];
+    for b in (0..chains.len()).rev() {
+        let (start, len) = (starts[b], chains[b]);
+        let last = (start + len).checked_sub(1)?;
+        let mut next = checked(tips[b])?;
+        out[last] = next;
+        for i in (start..last).rev() {
+            // `inner` skips each earlier branch's tip: `b` of them.
+            let gap = inner[i - b];
+            next = checked(i64::from(next.max(laterals[i])).checked_add(gap)?)?;
+            out[i] = next;
+        }
+        if let Some(p) = parents[b] {
+            if p >= start {
+                return None;
+            }
+            laterals[p] = laterals[p].max(out[start]);
+        }
+    }
+    Some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -187,6 +284,27 @@ mod tests {
         assert!(radii_from_parent_gaps(30, (&bases, &along), &chains, &[None, Some(3)]).is_none());
     }
 
+    #[test]
+    fn child_gaps_predict_a_node_from_its_thickest_child() {
+        // Trunk 30, 28, 27 (the root first); laterals 9, 8 and 12 forking
+        // at node 1, which is predicted from max(27, 9, 12) = 27.
+        let (radii, chains, parents) =
+            ([30, 28, 27, 9, 8, 12], [3, 2, 1], [None, Some(1), Some(1)]);
+        let (tips, inner) = child_gaps(&radii, &chains, &parents);
+        assert_eq!(tips, vec![27, 8, 12]);
+        assert_eq!(inner, vec![2, 1, 1]);
+        let back = radii_from_child_gaps((&tips, &inner), &chains, &parents);
+        assert_eq!(back.unwrap(), radii);
+        // A parent on the same or a later branch, a wrong count or a radius
+        // out of range is refused.
+        assert!(
+            radii_from_child_gaps((&tips, &inner), &chains, &[None, Some(3), Some(1)]).is_none()
+        );
+        assert!(radii_from_child_gaps((&tips, &inner[1..]), &chains, &parents).is_none());
+        assert!(radii_from_child_gaps((&tips, &[2, 1, -30]), &chains, &parents).is_none());
+        assert!(radii_from_child_gaps((&tips, &[i64::MAX, 1, 1]), &chains, &parents).is_none());
+    }
+
     proptest! {
         #[test]
         fn round_trip(chains in proptest::collection::vec(
@@ -200,7 +318,15 @@ mod tests {
                 let back: Vec<i64> = mapped.iter().map(|&u| mapping.invert(u).unwrap()).collect();
                 prop_assert_eq!(&back, &gaps);
             }
-            prop_assert_eq!(radii_from_gaps(&gaps, &lens).unwrap(), radii);
+            prop_assert_eq!(&radii_from_gaps(&gaps, &lens).unwrap(), &radii);
+            // Child-predicted, with each lateral forking from an earlier
+            // branch's first node.
+            let starts: Vec<usize> = chain_starts(&lens).collect();
+            let parents: Vec<Option<usize>> = (0..lens.len())
+                .map(|b| (b > 0).then(|| starts[b / 2]))
+                .collect();
+            let (tips, inner) = child_gaps(&radii, &lens, &parents);
+            prop_assert_eq!(radii_from_child_gaps((&tips, &inner), &lens, &parents).unwrap(), radii);
         }
     }
 }

@@ -13,9 +13,10 @@
 //! radii and along-branch increases (mostly zero) saves another fifth of the
 //! radius bits. Kind 3 (container version 2) codes the terminators as
 //! tip bits, fork bits and lateral counts (their order-0 entropy, which BWT
-//! and MTF do not reach on reconstructed trees) and predicts each lateral's
-//! base radius from its fork node when that is shorter. Measured figures are
-//! in `docs/chaincode.md` §9.
+//! and MTF do not reach on reconstructed trees) and codes the radii in the
+//! shortest of three layouts: tip-first, parent-predicted (each lateral's
+//! base from its fork node) or child-predicted (each node from its thickest
+//! child). Measured figures are in `docs/chaincode.md` §9.
 //!
 //! The form is lossless for every code whose internodes write their moves
 //! clustered by axis (`push_moves` in the encoder) or as the cancelling pair
@@ -26,7 +27,10 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::container::{best_radius_mapping, cumulative, differences, unzigzag, zigzag};
-use super::radii::{GapMapping, branch_gaps, parent_gaps, radii_from_gaps, radii_from_parent_gaps};
+use super::radii::{
+    GapMapping, branch_gaps, child_gaps, parent_gaps, radii_from_child_gaps, radii_from_gaps,
+    radii_from_parent_gaps,
+};
 use super::{ChainCode, ChainError, END, FORK, MOVE_NEG_X, MOVE_POS_X, TIP, bwt, interpolative};
 use super::{lod, mtf};
 
@@ -215,18 +219,56 @@ pub(crate) enum Form {
     Kind3,
 }
 
-/// The payload (everything after the header), or `None` if the code is not
-/// in the encoder's move order.
-pub(crate) fn compress_payload(code: &ChainCode, form: Form) -> Option<Vec<u8>> {
-    build(code, form).map(|(payload, _)| payload)
+/// How kind 3 codes the radii: its radius layout byte (`docs/chaincode.md`
+/// §7). [`ChainCode::compress`] writes the shortest;
+/// [`ChainCode::compress_split_with`] a given one.
+///
+/// [`ChainCode::compress`]: super::ChainCode::compress
+/// [`ChainCode::compress_split_with`]: super::ChainCode::compress_split_with
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RadiusLayout {
+    /// 0: per branch its tip radius, then the increases towards the base
+    /// (chain-code paper §3.3, split in two streams).
+    TipFirst,
+    /// 1: the root radius, each lateral's base as a decrease from its fork
+    /// node, and the decreases along each branch.
+    ParentPredicted,
+    /// 2: per branch its tip radius, and every other node as an increase
+    /// over its thickest child (radii never grow towards the tips).
+    ChildPredicted,
 }
 
-/// Bits of the structure, correction and radius codes of a split form.
-pub(crate) fn stream_bits(code: &ChainCode, form: Form) -> Option<[u64; 3]> {
-    build(code, form).map(|(_, bits)| bits)
+impl RadiusLayout {
+    /// Every layout, in the order of their bytes.
+    pub const ALL: [RadiusLayout; 3] = [
+        RadiusLayout::TipFirst,
+        RadiusLayout::ParentPredicted,
+        RadiusLayout::ChildPredicted,
+    ];
+
+    /// The layout byte.
+    pub fn byte(self) -> u8 {
+        self as u8
+    }
+
+    fn from_byte(byte: u8) -> Option<Self> {
+        Self::ALL.get(usize::from(byte)).copied()
+    }
 }
 
-fn build(code: &ChainCode, form: Form) -> Option<(Vec<u8>, [u64; 3])> {
+/// What a split form's payload was built from, and where its bits went.
+pub(crate) struct Built {
+    pub(crate) payload: Vec<u8>,
+    /// Bits of the structure, correction and radius codes.
+    pub(crate) bits: [u64; 3],
+    /// Kind 3: the radius layout written.
+    pub(crate) radii: Option<RadiusLayout>,
+}
+
+/// The payload (everything after the header) and its parts, or `None` if
+/// the code is not in the encoder's move order. `radii`: kind 3's radius
+/// layout, `None` for the shortest (kind 2 is always tip-first).
+pub(crate) fn build(code: &ChainCode, form: Form, radii: Option<RadiusLayout>) -> Option<Built> {
     let streams = split(code.symbols())?;
     let mut meta = Vec::new();
     let mut bits = BitWriter::new();
@@ -245,14 +287,26 @@ fn build(code: &ChainCode, form: Form) -> Option<(Vec<u8>, [u64; 3])> {
     let correction_bits = bits.bit_len() - structure_bits;
 
     let scan = lod::scan(code.symbols(), code.radii_q().len()).ok()?;
-    let radii = RadiusStreams::of(code.radii_q(), &scan);
-    match form {
-        Form::Kind2 => radii.put_tip_first(&mut meta, &mut bits),
-        Form::Kind3 => radii.put_best(&mut meta, &mut bits),
-    }
+    let streams = RadiusStreams::of(code.radii_q(), &scan);
+    let layout = match form {
+        Form::Kind2 => {
+            streams.put(RadiusLayout::TipFirst, &mut meta, &mut bits);
+            None
+        }
+        Form::Kind3 => {
+            let layout = radii.unwrap_or_else(|| streams.shortest());
+            meta.push(layout.byte());
+            streams.put(layout, &mut meta, &mut bits);
+            Some(layout)
+        }
+    };
     let radius_bits = bits.bit_len() - structure_bits - correction_bits;
     meta.extend(bits.finish());
-    Some((meta, [structure_bits, correction_bits, radius_bits]))
+    Some(Built {
+        payload: meta,
+        bits: [structure_bits, correction_bits, radius_bits],
+        radii: layout,
+    })
 }
 
 /// Kind 2 structure: the items through BWT (virtual end marker) and MTF.
@@ -298,7 +352,7 @@ fn put_structure_bits(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]
     }
 }
 
-/// The radius streams of a code, in both layouts.
+/// The radius streams of a code, in every layout.
 struct RadiusStreams {
     /// Tip-first: per branch its tip radius, then increases towards the base.
     tips: Vec<i64>,
@@ -308,6 +362,9 @@ struct RadiusStreams {
     root: u64,
     bases: Vec<i64>,
     along: Vec<i64>,
+    /// Child-predicted: `tips`, then each other node's increase over its
+    /// thickest child.
+    over_children: Vec<i64>,
 }
 
 impl RadiusStreams {
@@ -315,48 +372,52 @@ impl RadiusStreams {
         let chains = scan.branch_lengths();
         let gaps = branch_gaps(radii_q, &chains);
         let (tips, inner) = split_radii(&gaps, &chains);
-        let (bases, along) = parent_gaps(radii_q, &chains, &scan.branch_parents());
+        let parents = scan.branch_parents();
+        let (bases, along) = parent_gaps(radii_q, &chains, &parents);
+        let (_, over_children) = child_gaps(radii_q, &chains, &parents);
         Self {
             tips,
             inner,
             root: radii_q.first().map_or(0, |&q| u64::from(q)),
             bases,
             along,
+            over_children,
         }
     }
 
-    fn put_tip_first(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
-        put_signed_stream(meta, bits, &self.tips);
-        put_signed_stream(meta, bits, &self.inner);
+    /// The metadata and interpolative codes of one layout (without its
+    /// layout byte).
+    fn put(&self, layout: RadiusLayout, meta: &mut Vec<u8>, bits: &mut BitWriter) {
+        let (first, second) = match layout {
+            RadiusLayout::TipFirst => (&self.tips, &self.inner),
+            RadiusLayout::ParentPredicted => {
+                put_varint(meta, self.root);
+                (&self.bases, &self.along)
+            }
+            RadiusLayout::ChildPredicted => {
+                put_escaped_stream(meta, bits, &self.tips);
+                put_escaped_stream(meta, bits, &self.over_children);
+                return;
+            }
+        };
+        put_signed_stream(meta, bits, first);
+        put_signed_stream(meta, bits, second);
     }
 
-    fn put_parent_predicted(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
-        put_varint(meta, self.root);
-        put_signed_stream(meta, bits, &self.bases);
-        put_signed_stream(meta, bits, &self.along);
-    }
-
-    /// Kind 3: a layout byte (0 tip-first, 1 parent-predicted), then the
-    /// shorter layout.
-    fn put_best(&self, meta: &mut Vec<u8>, bits: &mut BitWriter) {
-        let cost = |put: fn(&Self, &mut Vec<u8>, &mut BitWriter)| {
+    /// The layout that codes shortest (metadata included); the lowest byte
+    /// on a tie.
+    fn shortest(&self) -> RadiusLayout {
+        let cost = |layout| {
             let (mut m, mut b) = (Vec::new(), BitWriter::new());
-            put(self, &mut m, &mut b);
+            self.put(layout, &mut m, &mut b);
             m.len() as u64 * 8 + b.bit_len()
         };
-        let tip_first = cost(Self::put_tip_first);
-        if cost(Self::put_parent_predicted) < tip_first {
-            meta.push(RADII_PARENT_PREDICTED);
-            self.put_parent_predicted(meta, bits);
-        } else {
-            meta.push(RADII_TIP_FIRST);
-            self.put_tip_first(meta, bits);
-        }
+        RadiusLayout::ALL
+            .into_iter()
+            .min_by_key(|&layout| cost(layout))
+            .unwrap_or(RadiusLayout::TipFirst)
     }
 }
-
-const RADII_TIP_FIRST: u8 = 0;
-const RADII_PARENT_PREDICTED: u8 = 1;
 
 /// A signed stream made non-negative by the shorter mapping (the mapping
 /// goes into `meta` before the stream's own metadata).
@@ -365,6 +426,31 @@ fn put_signed_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
     put_mapping(meta, mapping);
     let mapped: Vec<u64> = values.iter().map(|&g| mapping.apply(g)).collect();
     put_stream(meta, bits, &mapped);
+}
+
+/// Radius layout 2: a signed stream as its most common value `m` (a
+/// zigzagged varint in `meta`), a flag stream marking the values other than
+/// `m`, and those values as a signed stream. Most tips of a reconstruction
+/// carry the pipe model's tip radius and most nodes their thickest child's:
+/// the flags code their positions close to the order-0 entropy, where one
+/// interpolative code over all values pays for every outlier's neighbours.
+fn put_escaped_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
+    let mode = most_common(values);
+    let flags: Vec<u64> = values.iter().map(|&v| u64::from(v != mode)).collect();
+    let others: Vec<i64> = values.iter().copied().filter(|&v| v != mode).collect();
+    put_varint(meta, zigzag(mode));
+    put_stream(meta, bits, &flags);
+    put_signed_stream(meta, bits, &others);
+}
+
+/// The most common value (the smallest of equally common ones; 0 if empty).
+fn most_common(values: &[i64]) -> i64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_unstable();
+    sorted
+        .chunk_by(|a, b| a == b)
+        .max_by_key(|run| (run.len(), std::cmp::Reverse(run[0])))
+        .map_or(0, |run| run[0])
 }
 
 /// Reads a split-stream payload into the symbols and radii of `n_symbols`
@@ -392,10 +478,11 @@ pub(crate) fn decompress_payload(
     }
     let radius_meta = match form {
         Form::Kind2 => RadiusMeta::tip_first(cur)?,
-        Form::Kind3 => match cur.u8()? {
-            RADII_TIP_FIRST => RadiusMeta::tip_first(cur)?,
-            RADII_PARENT_PREDICTED => RadiusMeta::parent_predicted(cur)?,
-            _ => return Err(ChainError::Malformed("unknown radius layout")),
+        Form::Kind3 => match RadiusLayout::from_byte(cur.u8()?) {
+            Some(RadiusLayout::TipFirst) => RadiusMeta::tip_first(cur)?,
+            Some(RadiusLayout::ParentPredicted) => RadiusMeta::parent_predicted(cur)?,
+            Some(RadiusLayout::ChildPredicted) => RadiusMeta::child_predicted(cur)?,
+            None => return Err(ChainError::Malformed("unknown radius layout")),
         },
     };
     let bit_bytes = cur.rest();
@@ -548,6 +635,40 @@ enum RadiusMeta {
         bases: (GapMapping, Meta),
         along: (GapMapping, Meta),
     },
+    ChildPredicted {
+        tips: EscapedMeta,
+        over_children: EscapedMeta,
+    },
+}
+
+/// The metadata of a [`put_escaped_stream`]: most common value, flags,
+/// the other values.
+#[derive(Clone, Copy)]
+struct EscapedMeta {
+    mode: i64,
+    flags: Meta,
+    others: (GapMapping, Meta),
+}
+
+impl EscapedMeta {
+    fn read(cur: &mut ByteCursor<'_>) -> Result<Self, ChainError> {
+        Ok(Self {
+            mode: unzigzag(cur.varint()?),
+            flags: get_meta(cur)?,
+            others: (get_mapping(cur)?, get_meta(cur)?),
+        })
+    }
+
+    /// The `n` values of the stream.
+    fn values(self, r: &mut BitReader<'_>, n: usize) -> Result<Vec<i64>, ChainError> {
+        let flags = get_flags(r, n, self.flags)?;
+        let n_others = flags.iter().filter(|&&f| f).count();
+        let mut others = get_signed_stream(r, n_others, self.others)?.into_iter();
+        Ok(flags
+            .iter()
+            .map(|&f| if f { others.next() } else { None }.unwrap_or(self.mode))
+            .collect())
+    }
 }
 
 impl RadiusMeta {
@@ -555,6 +676,13 @@ impl RadiusMeta {
         Ok(Self::TipFirst {
             tips: (get_mapping(cur)?, get_meta(cur)?),
             inner: (get_mapping(cur)?, get_meta(cur)?),
+        })
+    }
+
+    fn child_predicted(cur: &mut ByteCursor<'_>) -> Result<Self, ChainError> {
+        Ok(Self::ChildPredicted {
+            tips: EscapedMeta::read(cur)?,
+            over_children: EscapedMeta::read(cur)?,
         })
     }
 
@@ -588,6 +716,15 @@ impl RadiusMeta {
                 let parents = scan.branch_parents();
                 radii_from_parent_gaps(root, (&bases, &along), &chains, &parents)
                     .ok_or(out_of_range)
+            }
+            Self::ChildPredicted {
+                tips,
+                over_children,
+            } => {
+                let tips = tips.values(r, chains.len())?;
+                let over = over_children.values(r, n_nodes - chains.len())?;
+                let parents = scan.branch_parents();
+                radii_from_child_gaps((&tips, &over), &chains, &parents).ok_or(out_of_range)
             }
         }
     }
@@ -770,6 +907,29 @@ mod tests {
             put_varint(&mut meta, hostile);
             assert!(get_centre(&mut ByteCursor::new(&meta)).is_err());
         }
+    }
+
+    #[test]
+    fn escaped_streams_round_trip_and_refuse_flags_above_one() {
+        let values = [4i64, 4, 58, 4, 5, 4, 4, -3, 4];
+        assert_eq!(most_common(&values), 4);
+        assert_eq!(most_common(&[]), 0);
+        let (mut meta, mut bits) = (Vec::new(), BitWriter::new());
+        put_escaped_stream(&mut meta, &mut bits, &values);
+        let bytes = bits.finish();
+        let escaped = EscapedMeta::read(&mut ByteCursor::new(&meta)).unwrap();
+        assert_eq!(escaped.mode, 4);
+        let back = escaped.values(&mut BitReader::new(&bytes), values.len());
+        assert_eq!(back.unwrap(), values);
+        let hostile = EscapedMeta {
+            flags: (2, 3),
+            ..escaped
+        };
+        assert!(
+            hostile
+                .values(&mut BitReader::new(&bytes), values.len())
+                .is_err()
+        );
     }
 
     #[test]
