@@ -48,7 +48,7 @@
 use glam::Vec3;
 
 use super::ReconstructError;
-use crate::cloud::clean::voxel_downsample;
+use crate::cloud::clean::{occupied_voxels, voxel_downsample};
 use crate::cloud::{CLASS_GROUND, PointCloud};
 use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
@@ -503,17 +503,20 @@ pub fn reconstruct(
 /// thins on coarser voxels until at most `max_points` remain. Returns the
 /// points and, when thinning beyond de-duplication was needed, the voxel.
 fn thin(points: Vec<Vec3>, duplicate_m: f32, max_points: usize) -> (Vec<Vec3>, Option<f32>) {
-    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
-    let mut out = voxel_downsample(&cloud, duplicate_m);
+    let budget = max_points.max(1);
     let mut voxel = duplicate_m;
+    let mut count = occupied_voxels(&points, voxel);
     let mut thinned = None;
-    while out.len() > max_points.max(1) {
+    // Only counts until the size is found: selecting the points is the
+    // costly part, and it is done once, at the last size.
+    while count > budget {
         // Tree surfaces are two-dimensional: the count falls with voxel².
-        voxel *= ((out.len() as f32 / max_points.max(1) as f32).sqrt() * 1.05).max(1.1);
-        out = voxel_downsample(&cloud, voxel);
+        voxel *= ((count as f32 / budget as f32).sqrt() * 1.05).max(1.1);
+        count = occupied_voxels(&points, voxel);
         thinned = Some(voxel);
     }
-    (out.points, thinned)
+    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+    (voxel_downsample(&cloud, voxel).points, thinned)
 }
 
 fn require_points(found: usize) -> Result<(), ReconstructError> {
