@@ -505,7 +505,13 @@ pub fn reconstruct(
 fn thin(points: Vec<Vec3>, duplicate_m: f32, max_points: usize) -> (Vec<Vec3>, Option<f32>) {
     let budget = max_points.max(1);
     let mut voxel = duplicate_m;
-    let mut count = occupied_voxels(&points, voxel);
+    // A cloud within the budget needs no count: de-duplication only
+    // lowers it.
+    let mut count = if points.len() > budget {
+        occupied_voxels(&points, voxel)
+    } else {
+        points.len()
+    };
     let mut thinned = None;
     // Only counts until the size is found: selecting the points is the
     // costly part, and it is done once, at the last size.
@@ -627,4 +633,57 @@ fn connect(
         .map(|(a, b, w)| (new_id[a as usize], new_id[b as usize], w))
         .collect();
     Ok((kept, edges))
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+
+    /// `n` points on the bark of a 0.3 m trunk, 4 m tall, with duplicates.
+    fn bark(n: usize) -> Vec<Vec3> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut pts: Vec<Vec3> = (0..n)
+            .map(|_| {
+                let phi = rng.random::<f32>() * std::f32::consts::TAU;
+                Vec3::new(0.3 * phi.cos(), 0.3 * phi.sin(), 4.0 * rng.random::<f32>())
+            })
+            .collect();
+        pts.extend_from_within(..n / 10);
+        pts
+    }
+
+    /// What `thin` computes, the plain way: select at every trial size.
+    fn thin_by_selecting(points: Vec<Vec3>, duplicate_m: f32, max: usize) -> Vec<Vec3> {
+        let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+        let (mut out, mut voxel) = (voxel_downsample(&cloud, duplicate_m), duplicate_m);
+        while out.len() > max {
+            voxel *= ((out.len() as f32 / max as f32).sqrt() * 1.05).max(1.1);
+            out = voxel_downsample(&cloud, voxel);
+        }
+        out.points
+    }
+
+    #[test]
+    fn thinning_finds_its_voxel_by_counting_and_keeps_what_selecting_would() {
+        let pts = bark(40_000);
+        let (thinned, voxel) = thin(pts.clone(), 0.002, 5_000);
+        assert!(
+            thinned.len() <= 5_000 && thinned.len() > 2_500,
+            "{}",
+            thinned.len()
+        );
+        assert!(voxel.is_some_and(|v| v > 0.002));
+        assert_eq!(thinned, thin_by_selecting(pts, 0.002, 5_000));
+    }
+
+    #[test]
+    fn a_cloud_within_the_budget_loses_only_its_duplicates() {
+        let pts = bark(4_000);
+        let (kept, voxel) = thin(pts.clone(), 0.002, 5_000);
+        assert_eq!(voxel, None);
+        assert!(kept.len() < pts.len() && kept.len() >= 3_600);
+        assert_eq!(kept, thin_by_selecting(pts, 0.002, 5_000));
+    }
 }
