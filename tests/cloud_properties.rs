@@ -6,7 +6,9 @@ use std::io::Cursor;
 
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
-use silva::cloud::clean::{remove_near_duplicates, remove_statistical_outliers, voxel_downsample};
+use silva::cloud::clean::{
+    occupied_voxels, remove_near_duplicates, remove_statistical_outliers, voxel_downsample,
+};
 use silva::cloud::{CloudError, Format, PointCloud, ReadOptions, read_as, read_bytes};
 
 const SAMPLES: [&str; 7] = [
@@ -119,6 +121,7 @@ proptest! {
 
         let down = voxel_downsample(&cloud, voxel_m);
         prop_assert!(down.len() <= dedup.len());
+        prop_assert_eq!(occupied_voxels(&cloud.points, voxel_m), down.len());
         let outliers = remove_statistical_outliers(&cloud, 4, 2.0);
         prop_assert!(outliers.len() <= cloud.len());
         for out in [&dedup, &down, &outliers] {

@@ -240,26 +240,96 @@ pub fn voxel_downsample(cloud: &PointCloud, voxel_m: f32) -> PointCloud {
     if !(voxel_m > 0.0 && voxel_m.is_finite()) {
         return cloud.clone();
     }
-    // `as` saturates, so far-away or huge coordinates share edge voxels
-    // rather than overflow.
-    let key = |p: Vec3| {
-        let v = (p / voxel_m).floor();
-        (v.z as i32, v.y as i32, v.x as i32)
+    let points = &cloud.points;
+    let mut keep = match packed_keys(points, voxel_m) {
+        Some(keys) => closest_per_voxel(points, keys),
+        None => closest_per_voxel(points, points.iter().map(|&p| voxel_of(p, voxel_m))),
     };
-    // Sorting the points by voxel (then by index) puts each voxel's points
-    // in one run, in input order: a third of the cost of hashing them
-    // (this step ran on every dense reconstruction).
-    let mut order: Vec<((i32, i32, i32), u32)> = (cloud.points.iter())
-        .enumerate()
-        .map(|(i, &p)| (key(p), i as u32))
-        .collect();
-    order.sort_unstable();
-    let mut keep: Vec<usize> = order
-        .chunk_by(|a, b| a.0 == b.0)
-        .map(|run| closest_to_centroid(&cloud.points, run.iter().map(|&(_, i)| i as usize)))
-        .collect();
     keep.sort_unstable();
     cloud.select(&keep)
+}
+
+/// For each voxel (`keys`: one per point), the index of its point nearest
+/// the centroid of its points.
+///
+/// Sorting the points by voxel, then by index, puts each voxel's points in
+/// one run, in input order: a third of the cost of hashing them (this step
+/// runs on every dense reconstruction).
+fn closest_per_voxel<K: Ord>(points: &[Vec3], keys: impl Iterator<Item = K>) -> Vec<usize> {
+    let mut order: Vec<(K, u32)> = keys.zip(0u32..).collect();
+    order.sort_unstable();
+    order
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|run| closest_to_centroid(points, run.iter().map(|&(_, i)| i as usize)))
+        .collect()
+}
+
+/// The number of points [`voxel_downsample`] keeps at `voxel_m`, without
+/// choosing them: the number of occupied voxels (all points for a
+/// non-positive or non-finite size).
+///
+/// A caller searching for the voxel size that brings a cloud under a
+/// budget counts at each trial size and selects once, at the last.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::{occupied_voxels, voxel_downsample};
+///
+/// let pts = vec![Vec3::new(0.1, 0.1, 0.1), Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.45, 0.5, 0.5), Vec3::new(1.5, 0.2, 0.2)];
+/// assert_eq!(occupied_voxels(&pts, 1.0), 2);
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts.clone());
+/// assert_eq!(occupied_voxels(&pts, 0.3), voxel_downsample(&cloud, 0.3).len());
+/// ```
+pub fn occupied_voxels(points: &[Vec3], voxel_m: f32) -> usize {
+    if !(voxel_m > 0.0 && voxel_m.is_finite()) {
+        return points.len();
+    }
+    let Some(keys) = packed_keys(points, voxel_m) else {
+        return distinct(points.iter().map(|&p| voxel_of(p, voxel_m)).collect());
+    };
+    // Sorted, not hashed: a hash set of millions of keys takes fewer
+    // instructions but misses the cache on every insert, and was slower
+    // (5.6 M points: 6.0 s against 3.8 s for the whole reconstruction).
+    distinct(keys.collect())
+}
+
+/// The points' voxels as one 63-bit key each, which orders as the (z, y, x)
+/// voxel indices do, when the cloud spans fewer than 2^21 voxels per axis
+/// (a tree at 2 mm spans about 2^14); `None` otherwise. Sorting or hashing
+/// one integer is several times cheaper than the index triple.
+fn packed_keys(points: &[Vec3], voxel_m: f32) -> Option<impl Iterator<Item = u64> + '_> {
+    // `floor` is monotonic, so the corners' voxels bound every finite
+    // point's (a NaN point would fall outside them).
+    let (min, max, finite) = points.iter().fold(
+        (Vec3::INFINITY, Vec3::NEG_INFINITY, true),
+        |(lo, hi, finite), &p| (lo.min(p), hi.max(p), finite && p.is_finite()),
+    );
+    let (lo, hi) = (voxel_of(min, voxel_m), voxel_of(max, voxel_m));
+    let offset = |v: i32, from: i32| (i64::from(v) - i64::from(from)) as u64;
+    let fits = [(lo.0, hi.0), (lo.1, hi.1), (lo.2, hi.2)]
+        .iter()
+        .all(|&(a, b)| offset(b, a) < 1 << 21);
+    (finite && fits).then(move || {
+        points.iter().map(move |&p| {
+            let (z, y, x) = voxel_of(p, voxel_m);
+            offset(z, lo.0) << 42 | offset(y, lo.1) << 21 | offset(x, lo.2)
+        })
+    })
+}
+
+/// The number of distinct values in `keys`.
+fn distinct<K: Ord>(mut keys: Vec<K>) -> usize {
+    keys.sort_unstable();
+    keys.chunk_by(|a, b| a == b).count()
+}
+
+/// The voxel of edge `voxel_m` holding `p`, as (z, y, x) indices. `as`
+/// saturates, so far-away or huge coordinates share edge voxels rather than
+/// overflow.
+fn voxel_of(p: Vec3, voxel_m: f32) -> (i32, i32, i32) {
+    let v = (p / voxel_m).floor();
+    (v.z as i32, v.y as i32, v.x as i32)
 }
 
 /// The index (the first of equals) of the point nearest the centroid of the
@@ -335,6 +405,40 @@ mod tests {
             .collect();
         let out = voxel_downsample(&cloud(pts), 0.5);
         assert_eq!(out.len(), 8);
+    }
+
+    #[test]
+    fn packed_and_triple_voxel_keys_keep_the_same_points() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut coordinate = || rng.random_range(-3.0f32..3.0);
+        let pts: Vec<Vec3> = (0..5000)
+            .map(|_| Vec3::new(coordinate(), coordinate(), coordinate()))
+            .collect();
+        for voxel_m in [0.002, 0.05, 0.7] {
+            let packed = packed_keys(&pts, voxel_m).expect("a 6 m cloud packs");
+            let triples = pts.iter().map(|&p| voxel_of(p, voxel_m));
+            let kept = closest_per_voxel(&pts, packed);
+            assert_eq!(kept, closest_per_voxel(&pts, triples));
+            assert_eq!(occupied_voxels(&pts, voxel_m), kept.len());
+        }
+    }
+
+    #[test]
+    fn clouds_too_wide_to_pack_or_not_finite_are_counted_all_the_same() {
+        let wide = vec![
+            Vec3::ZERO,
+            Vec3::new(5_000.0, 0.0, 0.0),
+            Vec3::new(0.0004, 0.0, 0.0),
+        ];
+        assert!(packed_keys(&wide, 0.001).is_none());
+        assert_eq!(occupied_voxels(&wide, 0.001), 2);
+        let with_nan = vec![Vec3::ZERO, Vec3::NAN, Vec3::new(4.5, 0.0, 0.0)];
+        assert!(packed_keys(&with_nan, 1.0).is_none());
+        // NaN saturates to voxel (0, 0, 0), as in `voxel_downsample`.
+        assert_eq!(occupied_voxels(&with_nan, 1.0), 2);
+        assert_eq!(voxel_downsample(&cloud(with_nan), 1.0).len(), 2);
+        assert_eq!(occupied_voxels(&wide, f32::NAN), 3);
     }
 
     #[test]

@@ -48,7 +48,7 @@
 use glam::Vec3;
 
 use super::ReconstructError;
-use crate::cloud::clean::voxel_downsample;
+use crate::cloud::clean::{occupied_voxels, voxel_downsample};
 use crate::cloud::{CLASS_GROUND, PointCloud};
 use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
@@ -503,17 +503,26 @@ pub fn reconstruct(
 /// thins on coarser voxels until at most `max_points` remain. Returns the
 /// points and, when thinning beyond de-duplication was needed, the voxel.
 fn thin(points: Vec<Vec3>, duplicate_m: f32, max_points: usize) -> (Vec<Vec3>, Option<f32>) {
-    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
-    let mut out = voxel_downsample(&cloud, duplicate_m);
+    let budget = max_points.max(1);
     let mut voxel = duplicate_m;
+    // A cloud within the budget needs no count: de-duplication only
+    // lowers it.
+    let mut count = if points.len() > budget {
+        occupied_voxels(&points, voxel)
+    } else {
+        points.len()
+    };
     let mut thinned = None;
-    while out.len() > max_points.max(1) {
+    // Only counts until the size is found: selecting the points is the
+    // costly part, and it is done once, at the last size.
+    while count > budget {
         // Tree surfaces are two-dimensional: the count falls with voxel².
-        voxel *= ((out.len() as f32 / max_points.max(1) as f32).sqrt() * 1.05).max(1.1);
-        out = voxel_downsample(&cloud, voxel);
+        voxel *= ((count as f32 / budget as f32).sqrt() * 1.05).max(1.1);
+        count = occupied_voxels(&points, voxel);
         thinned = Some(voxel);
     }
-    (out.points, thinned)
+    let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+    (voxel_downsample(&cloud, voxel).points, thinned)
 }
 
 fn require_points(found: usize) -> Result<(), ReconstructError> {
@@ -624,4 +633,57 @@ fn connect(
         .map(|(a, b, w)| (new_id[a as usize], new_id[b as usize], w))
         .collect();
     Ok((kept, edges))
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+
+    /// `n` points on the bark of a 0.3 m trunk, 4 m tall, with duplicates.
+    fn bark(n: usize) -> Vec<Vec3> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut pts: Vec<Vec3> = (0..n)
+            .map(|_| {
+                let phi = rng.random::<f32>() * std::f32::consts::TAU;
+                Vec3::new(0.3 * phi.cos(), 0.3 * phi.sin(), 4.0 * rng.random::<f32>())
+            })
+            .collect();
+        pts.extend_from_within(..n / 10);
+        pts
+    }
+
+    /// What `thin` computes, the plain way: select at every trial size.
+    fn thin_by_selecting(points: Vec<Vec3>, duplicate_m: f32, max: usize) -> Vec<Vec3> {
+        let cloud = PointCloud::from_points(glam::DVec3::ZERO, points);
+        let (mut out, mut voxel) = (voxel_downsample(&cloud, duplicate_m), duplicate_m);
+        while out.len() > max {
+            voxel *= ((out.len() as f32 / max as f32).sqrt() * 1.05).max(1.1);
+            out = voxel_downsample(&cloud, voxel);
+        }
+        out.points
+    }
+
+    #[test]
+    fn thinning_finds_its_voxel_by_counting_and_keeps_what_selecting_would() {
+        let pts = bark(40_000);
+        let (thinned, voxel) = thin(pts.clone(), 0.002, 5_000);
+        assert!(
+            thinned.len() <= 5_000 && thinned.len() > 2_500,
+            "{}",
+            thinned.len()
+        );
+        assert!(voxel.is_some_and(|v| v > 0.002));
+        assert_eq!(thinned, thin_by_selecting(pts, 0.002, 5_000));
+    }
+
+    #[test]
+    fn a_cloud_within_the_budget_loses_only_its_duplicates() {
+        let pts = bark(4_000);
+        let (kept, voxel) = thin(pts.clone(), 0.002, 5_000);
+        assert_eq!(voxel, None);
+        assert!(kept.len() < pts.len() && kept.len() >= 3_600);
+        assert_eq!(kept, thin_by_selecting(pts, 0.002, 5_000));
+    }
 }
