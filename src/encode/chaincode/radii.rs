@@ -216,7 +216,7 @@ pub(crate) fn radii_from_child_gaps(
     parents: &[Option<usize>],
 ) -> Option<Vec<u32>> {
     let n = inner.len().checked_add(tips.len())?;
-    if tips.len() != chains.len() || parents.len() != chains.len() {
+    if tips.len() != chains.len() || parents.len() != chains.len() || chains.contains(&0) {
         return None;
     }
     let starts: Vec<usize> = chain_starts(chains).collect();
@@ -303,6 +303,14 @@ mod tests {
         assert!(radii_from_child_gaps((&tips, &inner[1..]), &chains, &parents).is_none());
         assert!(radii_from_child_gaps((&tips, &[2, 1, -30]), &chains, &parents).is_none());
         assert!(radii_from_child_gaps((&tips, &[i64::MAX, 1, 1]), &chains, &parents).is_none());
+        // An empty chain would shift the tips' count off the nodes.
+        let (tips, inner) = ([27, 8, 0, 12], [2, 1]);
+        let empty = radii_from_child_gaps(
+            (&tips, &inner),
+            &[3, 1, 0, 2],
+            &[None, Some(1), Some(1), Some(1)],
+        );
+        assert!(empty.is_none());
     }
 
     proptest! {
