@@ -328,7 +328,8 @@ pub struct DenseOutput {
 }
 
 /// Builds the skeleton of the one tree in `cloud` (radii left at 0),
-/// checking `interrupt` before each step.
+/// checking `interrupt` before each step. The steps are those of the
+/// module documentation, one function each.
 pub fn reconstruct(
     cloud: &PointCloud,
     params: &Params,
@@ -336,7 +337,50 @@ pub fn reconstruct(
 ) -> Result<DenseOutput, ReconstructError> {
     interrupt.check("clean-up")?;
     let mut notes = Vec::new();
-    let points = without_ground(cloud, &mut notes);
+    let points = cleaned_points(cloud, params, &mut notes)?;
+    let mut graph = neighbour_graph(points, params, interrupt, &mut notes)?;
+    let (sources, root) = trunk_base(&graph.points, graph.bin_m);
+    let sections = cross_sections(&mut graph, &sources, root, params, interrupt)?;
+    // Express everything relative to the trunk base: the anchor carries the
+    // absolute position in f64, so the georeference stays exact.
+    let origin = cloud.offset + root.as_dvec3();
+    let mut nodes = sections.nodes;
+    for node in &mut nodes {
+        node.position -= root;
+    }
+    interrupt.check("simplification")?;
+    let nodes = simplify::merge_close_siblings(nodes, sections.counts, graph.bin_m);
+    let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
+        .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
+    let skeleton = simplified(skeleton, graph.bin_m, params);
+    let mut skeleton = refined(skeleton, graph.bin_m, params, interrupt)?;
+    interrupt.check("tip placement")?;
+    let tree_points: Vec<Vec3> = graph.points.iter().map(|&p| p - root).collect();
+    if params.tips_reach_last_points || params.tips_expected_gap {
+        let index = PointIndex::new(&tree_points);
+        let rule = tips::TipRule {
+            bin_m: graph.bin_m,
+            reach_last_points: params.tips_reach_last_points,
+            expected_gap: params.tips_expected_gap,
+        };
+        tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
+    }
+    Ok(DenseOutput {
+        skeleton: skeleton.canonical(),
+        cloud: PointCloud::from_points(origin, tree_points),
+        notes,
+        bin_width_m: graph.bin_m,
+    })
+}
+
+/// Step 1: the points without ground, de-duplicated and, for huge clouds,
+/// thinned (see [`thin`]).
+fn cleaned_points(
+    cloud: &PointCloud,
+    params: &Params,
+    notes: &mut Vec<String>,
+) -> Result<Vec<Vec3>, ReconstructError> {
+    let points = without_ground(cloud, notes);
     let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
     if let Some(voxel) = thinned {
         notes.push(format!(
@@ -347,6 +391,29 @@ pub fn reconstruct(
         ));
     }
     require_points(points.len())?;
+    Ok(points)
+}
+
+/// The connected neighbourhood graph of a cloud, with the scales the later
+/// steps measure in.
+struct NeighbourGraph {
+    /// The points that remain after noise components were dropped.
+    points: Vec<Vec3>,
+    edges: Vec<Edge>,
+    /// Median distance to the nearest neighbour, in metres.
+    spacing: f32,
+    /// Width of the geodesic-distance bins, in metres.
+    bin_m: f32,
+}
+
+/// Step 2, first half: the k-nearest-neighbour graph, made connected (see
+/// [`connect`]); then the checks that the points can be a tree.
+fn neighbour_graph(
+    points: Vec<Vec3>,
+    params: &Params,
+    interrupt: &Interrupt,
+    notes: &mut Vec<String>,
+) -> Result<NeighbourGraph, ReconstructError> {
     interrupt.check("the neighbour graph")?;
     let index = PointIndex::new(&points);
     let spacing = index.median_spacing(&points).unwrap_or(0.0);
@@ -361,15 +428,25 @@ pub fn reconstruct(
         (params.bin_spacings * spacing).clamp(params.bin_range_m.0, params.bin_range_m.1)
     });
     interrupt.check("connecting the graph")?;
-    let (points, edges) = connect(points, knn, bin_m, params, &mut notes)?;
+    let (points, edges) = connect(points, knn, bin_m, params, notes)?;
     require_points(points.len())?;
     super::check_height(&points)?;
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
     super::check_upright(&points, base_z, top_z)?;
+    Ok(NeighbourGraph {
+        points,
+        edges,
+        spacing,
+        bin_m,
+    })
+}
 
-    // The trunk base: every point of the lowest slice is a source; the root
-    // sits at their horizontal centroid, at the lowest point's height.
+/// The trunk base: every point of the lowest slice (one bin high) is a
+/// source of the shortest-path tree; the root sits at their horizontal
+/// centroid, at the lowest point's height.
+fn trunk_base(points: &[Vec3], bin_m: f32) -> (Vec<u32>, Vec3) {
+    let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let sources: Vec<u32> = (0..points.len() as u32)
         .filter(|&i| points[i as usize].z < base_z + bin_m)
         .collect();
@@ -378,49 +455,57 @@ pub fn reconstruct(
         .map(|&i| points[i as usize].truncate())
         .sum::<glam::Vec2>()
         / sources.len() as f32;
-    let root = base_xy.extend(base_z);
+    (sources, base_xy.extend(base_z))
+}
+
+/// Step 2, second half, and step 3: the shortest-path tree from the trunk
+/// base, and the cross-sections of equal geodesic distance that become
+/// skeleton nodes. Takes the graph's edges: once they are in the adjacency
+/// lists their memory is freed, as the graph's is after this step.
+fn cross_sections(
+    graph: &mut NeighbourGraph,
+    sources: &[u32],
+    root: Vec3,
+    params: &Params,
+    interrupt: &Interrupt,
+) -> Result<skeletonize::Sections, ReconstructError> {
     interrupt.check("the shortest-path tree")?;
-    let g = graph::Graph::from_edges(points.len(), &edges);
+    let edges = std::mem::take(&mut graph.edges);
+    let g = graph::Graph::from_edges(graph.points.len(), &edges);
     drop(edges);
-    let (dist, pred) = graph::shortest_path_tree(&g, &sources);
+    let (dist, pred) = graph::shortest_path_tree(&g, sources);
     interrupt.check("skeletonisation")?;
-    let sections = skeletonize::cross_sections(
-        &points,
+    let (bin_m, spacing) = (graph.bin_m, graph.spacing);
+    let sectioning = skeletonize::Sectioning {
+        bin_m,
+        merge_overlapping_arcs: params.merge_overlapping_arcs,
+        centre_arcs: params.centre_arcs,
+        window_bins: params.ring_window_bins,
+        thick_spread_m: params.ring_spread_m,
+        broken_ring_pieces: params.broken_ring_pieces,
+        broken_ring_spread_m: params.broken_ring_spread_m,
+        ring_outlier_m: params.ring_outlier_m,
+        max_link_m: params.section_link_spacings * spacing,
+        max_ring_link_m: params.ring_link_spacings * spacing,
+        two_stems: params.split_two_stems.then_some(fork_rings::TwoStemRule {
+            min_spread_m: params.two_stem_spread_bins * bin_m,
+            min_points: TWO_STEM_MIN_POINTS,
+            max_deviation_share: params.two_stem_deviation_share,
+        }),
+    };
+    Ok(skeletonize::cross_sections(
+        &graph.points,
         &g,
         &dist,
         &pred,
         root,
-        &skeletonize::Sectioning {
-            bin_m,
-            merge_overlapping_arcs: params.merge_overlapping_arcs,
-            centre_arcs: params.centre_arcs,
-            window_bins: params.ring_window_bins,
-            thick_spread_m: params.ring_spread_m,
-            broken_ring_pieces: params.broken_ring_pieces,
-            broken_ring_spread_m: params.broken_ring_spread_m,
-            ring_outlier_m: params.ring_outlier_m,
-            max_link_m: params.section_link_spacings * spacing,
-            max_ring_link_m: params.ring_link_spacings * spacing,
-            two_stems: params.split_two_stems.then_some(fork_rings::TwoStemRule {
-                min_spread_m: params.two_stem_spread_bins * bin_m,
-                min_points: TWO_STEM_MIN_POINTS,
-                max_deviation_share: params.two_stem_deviation_share,
-            }),
-        },
-    );
-    drop(g);
+        &sectioning,
+    ))
+}
 
-    // Express everything relative to the trunk base: the anchor carries the
-    // absolute position in f64, so the georeference stays exact.
-    let origin = cloud.offset + root.as_dvec3();
-    let mut nodes = sections.nodes;
-    for node in &mut nodes {
-        node.position -= root;
-    }
-    interrupt.check("simplification")?;
-    let nodes = simplify::merge_close_siblings(nodes, sections.counts, bin_m);
-    let skeleton = Skeleton::from_nodes(Anchor::at(origin), nodes)
-        .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
+/// Step 4: noisy branches and bark detours dropped, chains smoothed and
+/// simplified (Douglas–Peucker), main extension first.
+fn simplified(skeleton: Skeleton, bin_m: f32, params: &Params) -> Skeleton {
     let keep = simplify::noise_branches(
         &skeleton,
         &simplify::Pruning {
@@ -456,11 +541,23 @@ pub fn reconstruct(
         params.simplify_spreads,
     );
     skeleton.order_main_extension_first();
+    skeleton
+}
+
+/// Steps 5 and 6: laterals of thick stems started on the stem's axis, and
+/// twigs that the stem reached more than once joined to it once.
+fn refined(
+    skeleton: Skeleton,
+    bin_m: f32,
+    params: &Params,
+    interrupt: &Interrupt,
+) -> Result<Skeleton, ReconstructError> {
     interrupt.check("lateral bases")?;
+    let thick_spread_m = params.lateral_base_spread_bins * bin_m;
     let skeleton = lateral_base::to_parent_axis(
         &skeleton,
         &lateral_base::BaseRule {
-            thick_spread_m: params.lateral_base_spread_bins * bin_m,
+            thick_spread_m,
             direction_spreads: params.lateral_direction_spreads,
             min_direction_m: params.lateral_direction_bins * bin_m,
             max_drop_spreads: params.lateral_max_drop_spreads,
@@ -472,31 +569,14 @@ pub fn reconstruct(
     let mut skeleton = twins::rejoin_twins(
         &skeleton,
         &twins::TwinRule {
-            thick_spread_m: params.lateral_base_spread_bins * bin_m,
+            thick_spread_m,
             max_gap_m: params.twin_gap_bins * bin_m,
             max_gap_share: TWIN_GAP_SHARE,
             min_turn_deg: params.twin_min_turn_deg,
         },
     );
     skeleton.order_main_extension_first();
-    interrupt.check("tip placement")?;
-    let tree_points: Vec<Vec3> = points.iter().map(|&p| p - root).collect();
-    if params.tips_reach_last_points || params.tips_expected_gap {
-        let index = PointIndex::new(&tree_points);
-        let rule = tips::TipRule {
-            bin_m,
-            reach_last_points: params.tips_reach_last_points,
-            expected_gap: params.tips_expected_gap,
-        };
-        tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
-    }
-    let skeleton = skeleton.canonical();
-    Ok(DenseOutput {
-        skeleton,
-        cloud: PointCloud::from_points(origin, tree_points),
-        notes,
-        bin_width_m: bin_m,
-    })
+    Ok(skeleton)
 }
 
 /// Removes near-duplicates (points within one `duplicate_m` voxel), then
