@@ -219,6 +219,46 @@ pub fn reconstruct_within(
 ) -> Result<AirborneResult, ReconstructError> {
     validate(params)?;
     interrupt.check("ground separation")?;
+    let mut notes = Vec::new();
+    let (finite, split) = separated(cloud, &mut notes)?;
+    interrupt.check("trunk completion")?;
+    let tree = &without_low_outliers(&split, &mut notes);
+    super::check_height(tree)?;
+    let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
+    notes.push(trunk.note());
+    let trunk_points_added = trunk.points.len();
+    interrupt.check("thinning and contraction")?;
+    let mut points = trunk.points;
+    let candidates = thin::thin(tree, params.voxel_m);
+    points.extend(thin::contract(
+        &candidates,
+        tree,
+        params.contraction_radius_m,
+    ));
+    let produced = produce(&points, params, interrupt, &mut notes)?;
+    interrupt.check("skeleton assembly")?;
+    let root = points[0];
+    let anchor = Anchor {
+        origin: finite.offset + root.as_dvec3(),
+        crs: None,
+    };
+    let mut skeleton = skeleton::to_skeleton(anchor, &points, &produced, root);
+    skeleton::pipe_radii(&mut skeleton, params.tip_radius_m);
+    skeleton.order_main_extension_first();
+    Ok(AirborneResult {
+        skeleton,
+        ground_points: split.ground.len(),
+        trunk_points_added,
+        notes,
+    })
+}
+
+/// The cloud's finite points, and those split into ground and tree; errors
+/// when too few are left for a tree, or the tree is not upright or too big.
+fn separated(
+    cloud: &PointCloud,
+    notes: &mut Vec<String>,
+) -> Result<(PointCloud, GroundSplit), ReconstructError> {
     let finite = usable_points(cloud);
     if finite.len() < MIN_TREE_POINTS {
         return Err(ReconstructError::TooFewPoints {
@@ -226,7 +266,6 @@ pub fn reconstruct_within(
             needed: MIN_TREE_POINTS,
         });
     }
-    let mut notes = Vec::new();
     if finite.len() < cloud.len() {
         notes.push(format!(
             "{} non-finite points ignored",
@@ -244,28 +283,24 @@ pub fn reconstruct_within(
         });
     }
     check_volume(&split.tree.points)?;
+    Ok((finite, split))
+}
 
-    interrupt.check("trunk completion")?;
-    let tree = &without_low_outliers(&split, &mut notes);
-    super::check_height(tree)?;
-    let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
-    notes.push(trunk.note());
-    let mut points = trunk.points.clone();
-    let trunk_points_added = points.len();
-    interrupt.check("thinning and contraction")?;
-    let candidates = thin::thin(tree, params.voxel_m);
-    points.extend(thin::contract(
-        &candidates,
-        tree,
-        params.contraction_radius_m,
-    ));
-
+/// The graph (Algorithm 1), the direction field (Eq. 5) and the greedy
+/// skeleton (Algorithm 2) over the candidate points, with a note on how
+/// many of them the skeleton reached.
+fn produce(
+    points: &[Vec3],
+    params: &Params,
+    interrupt: &Interrupt,
+    notes: &mut Vec<String>,
+) -> Result<skeleton::Produced, ReconstructError> {
     interrupt.check("the neighbour graph")?;
-    let adjacency = graph::graph(&points, params.neighbour_radius_m, params.knn);
+    let adjacency = graph::graph(points, params.neighbour_radius_m, params.knn);
     interrupt.check("the direction field")?;
-    let field = direction::direction_field(&points, params);
+    let field = direction::direction_field(points, params);
     interrupt.check("skeleton production (Algorithm 2)")?;
-    let produced = skeleton::skeleton_produce(&points, &adjacency, &field, 0, 1, params);
+    let produced = skeleton::skeleton_produce(points, &adjacency, &field, 0, 1, params);
     let share = |n: usize| n as f32 / points.len() as f32;
     notes.push(format!(
         "Algorithm 2 reached {:.0} % of {} candidate points, {:.0} % after re-attachment",
@@ -280,22 +315,7 @@ pub fn reconstruct_within(
             MIN_VISITED_SHARE * 100.0
         ));
     }
-
-    interrupt.check("skeleton assembly")?;
-    let root = points[0];
-    let anchor = Anchor {
-        origin: finite.offset + root.as_dvec3(),
-        crs: None,
-    };
-    let mut skeleton = skeleton::to_skeleton(anchor, &points, &produced, root);
-    skeleton::pipe_radii(&mut skeleton, params.tip_radius_m);
-    skeleton.order_main_extension_first();
-    Ok(AirborneResult {
-        skeleton,
-        ground_points: split.ground.len(),
-        trunk_points_added,
-        notes,
-    })
+    Ok(produced)
 }
 
 /// The finite points of `cloud` with their classification (the only

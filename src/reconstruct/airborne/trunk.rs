@@ -102,37 +102,11 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     let base_xy = lowest_layer_centre(tree, centre_xy);
     let g_b = base_xy.extend(ground_at(base_xy));
     let v_c = tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32;
-
-    // A lowest point without neighbours is an isolated trunk hit below the
-    // crown (common at AHN densities); the paper's n_avg is undefined there,
-    // and the trunk is taken as vertical (§5.3: trunks grow nearly
-    // perpendicular to the ground).
-    let measured = mean_direction(tree, v_low, params.trunk_sphere_m);
-    let n_avg = measured.unwrap_or(Vec3::Z);
     let half_diagonal = ((v_max - v_min) * 0.5)
         .truncate()
         .length()
         .max(f32::EPSILON);
-    let lambda2 = (v_low.truncate() - centre_xy).length() / half_diagonal;
-    let lambda1_deg = n_avg.angle_between(Vec3::Z).to_degrees();
-    // v_low can only be a trunk hit when it starts a column: at AHN
-    // densities the lowest return is as often the tip of a low limb, with
-    // other limbs' returns around it at the same height (λ1 and λ2 alone
-    // accepted such a limb 1.8 m from the trunk on a synthetic poplar).
-    let column = starts_column(tree, v_low, params.trunk_sphere_m);
-    // A lone return (no neighbour within r) cannot be a drooping limb's
-    // tip among its foliage, the case the tighter λ2 limit guards against,
-    // so the paper's own limit applies to it.
-    let lambda2_limit = if measured.is_none() {
-        LONE_HIT_LAMBDA2_MAX
-    } else {
-        params.lambda2_max
-    };
-    let eq3 = (column
-        && lambda1_deg <= params.lambda1_max_deg
-        && lambda2 <= lambda2_limit
-        && n_avg.z > 1e-3)
-        .then_some(n_avg);
+    let lowest = LowestPointTest::run(tree, v_low, centre_xy, half_diagonal, params);
     // The paper leaves the spacing of inserted points open. Half of r_p
     // keeps each trunk point short of k trunk neighbours within r_p, so
     // Algorithm 1's kNN pass links the trunk to the crown points around it
@@ -145,7 +119,7 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     // stem hit 1.2 m up on a synthetic birch whose stem column is 0.01 m
     // from the true base).
     let column_xy = terrain.and_then(|t| stem_column(tree, t, half_diagonal, centre_xy));
-    let (rule, points) = match (eq3, column_xy) {
+    let (rule, points) = match (lowest.direction, column_xy) {
         (Some(n), None) => {
             // Eq. 3: v_t = v_low − n_avg·t, t = h / n_avg.z reaches the ground.
             let h = v_low.z - ground_at(v_low.truncate());
@@ -180,9 +154,64 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
     Trunk {
         points,
         rule,
-        lambda1_deg,
-        lambda2,
+        lambda1_deg: lowest.lambda1_deg,
+        lambda2: lowest.lambda2,
         leader_top_m,
+    }
+}
+
+/// Eq. 3's test of the lowest point `v_low` (§5.3): a trunk hit when the
+/// points around it run near vertical (λ1) and it lies near the footprint's
+/// centre (λ2).
+struct LowestPointTest {
+    /// Angle of the points' mean direction around `v_low` to the vertical.
+    lambda1_deg: f32,
+    /// Horizontal distance of `v_low` from the footprint centre, over half
+    /// the footprint's diagonal.
+    lambda2: f32,
+    /// The trunk direction `n_avg` when the test passes.
+    direction: Option<Vec3>,
+}
+
+impl LowestPointTest {
+    fn run(
+        tree: &[Vec3],
+        v_low: Vec3,
+        centre_xy: Vec2,
+        half_diagonal: f32,
+        params: &Params,
+    ) -> Self {
+        // A lowest point without neighbours is an isolated trunk hit below
+        // the crown (common at AHN densities); the paper's n_avg is
+        // undefined there, and the trunk is taken as vertical (§5.3: trunks
+        // grow nearly perpendicular to the ground).
+        let measured = mean_direction(tree, v_low, params.trunk_sphere_m);
+        let n_avg = measured.unwrap_or(Vec3::Z);
+        let lambda2 = (v_low.truncate() - centre_xy).length() / half_diagonal;
+        let lambda1_deg = n_avg.angle_between(Vec3::Z).to_degrees();
+        // v_low can only be a trunk hit when it starts a column: at AHN
+        // densities the lowest return is as often the tip of a low limb,
+        // with other limbs' returns around it at the same height (λ1 and
+        // λ2 alone accepted such a limb 1.8 m from the trunk on a
+        // synthetic poplar).
+        let column = starts_column(tree, v_low, params.trunk_sphere_m);
+        // A lone return (no neighbour within r) cannot be a drooping limb's
+        // tip among its foliage, the case the tighter λ2 limit guards
+        // against, so the paper's own limit applies to it.
+        let lambda2_limit = if measured.is_none() {
+            LONE_HIT_LAMBDA2_MAX
+        } else {
+            params.lambda2_max
+        };
+        let passes = column
+            && lambda1_deg <= params.lambda1_max_deg
+            && lambda2 <= lambda2_limit
+            && n_avg.z > 1e-3;
+        Self {
+            lambda1_deg,
+            lambda2,
+            direction: passes.then_some(n_avg),
+        }
     }
 }
 
