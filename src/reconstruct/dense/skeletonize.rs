@@ -73,9 +73,31 @@ pub(super) fn cross_sections(
     root: Vec3,
     opts: &Sectioning,
 ) -> Sections {
-    let bin_m = opts.bin_m;
+    let bin: Vec<u32> = dist.iter().map(|&d| (d / opts.bin_m) as u32).collect();
+    let mut uf = grouped(points, graph, dist, pred, &bin, opts);
+    let (mut nodes, counts, node_of) = numbered_sections(points, dist, pred, &bin, root, &mut uf);
+    if opts.centre_arcs {
+        let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
+        for i in 0..points.len() as u32 {
+            members[node_of[uf.find(i) as usize] as usize].push(i);
+        }
+        centre_on_arcs(points, &members, &mut nodes, 2.0 * opts.bin_m);
+    }
+    Sections { nodes, counts }
+}
+
+/// The points grouped into cross-sections: each bin's points joined along
+/// short graph edges, then thick stems' rings, overlapping arcs and the
+/// two stems of narrow forks treated as [`Sectioning`] says.
+fn grouped(
+    points: &[Vec3],
+    graph: &Graph,
+    dist: &[f32],
+    pred: &[u32],
+    bin: &[u32],
+    opts: &Sectioning,
+) -> UnionFind {
     let n = points.len();
-    let bin: Vec<u32> = dist.iter().map(|&d| (d / bin_m) as u32).collect();
     let mut uf = UnionFind::new(n);
     // Bin 0 (everything within one bin of the base slice) is the root.
     let first_base = (0..n).find(|&i| bin[i] == 0).unwrap_or(0) as u32;
@@ -84,23 +106,39 @@ pub(super) fn cross_sections(
             uf.union(first_base, i);
         }
     }
-    join_within_windows(graph, &bin, 0, opts.max_link_m, &mut uf);
+    join_within_windows(graph, bin, 0, opts.max_link_m, &mut uf);
     if opts.window_bins > 0 {
-        join_thick_rings(points, graph, dist, pred, &bin, opts, &mut uf);
+        join_thick_rings(points, graph, dist, pred, bin, opts, &mut uf);
     }
     if opts.merge_overlapping_arcs {
         let stats = Stats::gather(points, dist, &mut uf);
-        merge_overlapping(points, &bin, &stats, &mut uf);
+        merge_overlapping(points, bin, &stats, &mut uf);
     }
     if let Some(rule) = &opts.two_stems {
         uf = split_two_stem_sections(points, &mut uf, rule);
     }
+    uf
+}
+
+/// One node per section of `uf`, numbered by the geodesic distance of its
+/// lowest point (so parents come first), at the section's centroid (the
+/// root's at `root`), hanging from the section of that point's predecessor.
+/// Returns the nodes, their point counts and each section root's node.
+fn numbered_sections(
+    points: &[Vec3],
+    dist: &[f32],
+    pred: &[u32],
+    bin: &[u32],
+    root: Vec3,
+    uf: &mut UnionFind,
+) -> (Vec<Node>, Vec<u32>, Vec<u32>) {
+    let n = points.len();
     let Stats {
         lowest,
         sum,
         sum_sq,
         count,
-    } = Stats::gather(points, dist, &mut uf);
+    } = Stats::gather(points, dist, uf);
     let mut sections: Vec<usize> = (0..n).filter(|&r| count[r] > 0).collect();
     sections.sort_by(|&a, &b| {
         let (la, lb) = (lowest[a] as usize, lowest[b] as usize);
@@ -145,14 +183,7 @@ pub(super) fn cross_sections(
         });
         counts.push(count[r]);
     }
-    if opts.centre_arcs {
-        let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
-        for i in 0..n as u32 {
-            members[node_of[uf.find(i) as usize] as usize].push(i);
-        }
-        centre_on_arcs(points, &members, &mut nodes, 2.0 * bin_m);
-    }
-    Sections { nodes, counts }
+    (nodes, counts, node_of)
 }
 
 /// Joins the pieces of thick stems' rings (see [`join_within_windows`]).
