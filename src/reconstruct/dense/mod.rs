@@ -644,7 +644,7 @@ type Edge = (u32, u32, f32);
 /// drops parts that lie too far away. Returns the kept points and edges.
 fn connect(
     points: Vec<Vec3>,
-    knn: Vec<(u32, u32, f32)>,
+    knn: Vec<Edge>,
     bin_m: f32,
     params: &Params,
     notes: &mut Vec<String>,
@@ -698,6 +698,17 @@ fn connect(
         .iter()
         .map(|&l| (l as usize) < kept_components && !dropped[l as usize])
         .collect();
+    Ok(retained(&points, knn, used, &keep))
+}
+
+/// The points marked in `keep`, renumbered, and the edges among them of
+/// the k-nearest-neighbour graph and the bridges `used`.
+fn retained(
+    points: &[Vec3],
+    knn: Vec<Edge>,
+    used: Vec<Edge>,
+    keep: &[bool],
+) -> (Vec<Vec3>, Vec<Edge>) {
     let mut new_id = vec![u32::MAX; points.len()];
     let mut kept = Vec::with_capacity(points.len());
     for (i, &p) in points.iter().enumerate() {
@@ -712,7 +723,7 @@ fn connect(
         .filter(|&(a, b, _)| keep[a as usize] && keep[b as usize])
         .map(|(a, b, w)| (new_id[a as usize], new_id[b as usize], w))
         .collect();
-    Ok((kept, edges))
+    (kept, edges)
 }
 
 #[cfg(test)]
