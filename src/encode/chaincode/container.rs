@@ -447,11 +447,10 @@ pub(super) fn cumulative(values: impl Iterator<Item = u64>) -> Vec<u64> {
 }
 
 pub(super) fn differences(sums: &[u64]) -> impl Iterator<Item = u64> + '_ {
-    sums.iter().scan(0u64, |prev, &s| {
-        let d = s - *prev;
-        *prev = s;
-        Some(d)
-    })
+    // Zipped with the previous sums rather than scanned, so that the
+    // iterator knows its length and `collect` allocates once.
+    let previous = std::iter::once(0).chain(sums.iter().copied());
+    sums.iter().zip(previous).map(|(&s, p)| s - p)
 }
 
 pub(super) fn zigzag(v: i64) -> u64 {
@@ -460,4 +459,20 @@ pub(super) fn zigzag(v: i64) -> u64 {
 
 pub(super) fn unzigzag(u: u64) -> i64 {
     ((u >> 1) as i64) ^ -((u & 1) as i64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The gaps between cumulative sums; the iterator knows its length, so
+    /// collecting the decoded streams allocates once.
+    #[test]
+    fn differences_are_the_gaps_and_know_their_length() {
+        let sums = [2u64, 2, 5, 9];
+        let gaps = differences(&sums);
+        assert_eq!(gaps.size_hint(), (4, Some(4)));
+        assert_eq!(gaps.collect::<Vec<_>>(), [2, 0, 3, 4]);
+        assert_eq!(differences(&[]).count(), 0);
+    }
 }
