@@ -67,18 +67,27 @@ fn parse_line(raw: &[u8]) -> Result<Option<DVec3>, String> {
     if data.is_empty() || data.starts_with(b"//") {
         return Ok(None);
     }
-    let mut fields = data
+    let fields = data
         .split(|&b| b == b',' || b.is_ascii_whitespace())
         .filter(|f| !f.is_empty());
+    coordinates(fields, parse_decimal, truncate_bytes).map(Some)
+}
+
+/// The first three of `fields` as coordinates; `shown` gives a field that
+/// is not a number for the error.
+fn coordinates<F: Copy>(
+    mut fields: impl Iterator<Item = F>,
+    parse: impl Fn(F) -> Option<f64>,
+    shown: impl Fn(F) -> String,
+) -> Result<DVec3, String> {
     let mut xyz = [0.0f64; 3];
     for (i, v) in xyz.iter_mut().enumerate() {
         let field = fields
             .next()
             .ok_or_else(|| format!("expected 3 coordinates, found {i}"))?;
-        *v = parse_decimal(field)
-            .ok_or_else(|| format!("not a number: {:?}", truncate_bytes(field)))?;
+        *v = parse(field).ok_or_else(|| format!("not a number: {:?}", shown(field)))?;
     }
-    Ok(Some(DVec3::from_array(xyz)))
+    Ok(DVec3::from_array(xyz))
 }
 
 /// `data` without leading and trailing white space, as `str::trim` sees it
@@ -101,19 +110,10 @@ fn parse_text_line(text: &str) -> Result<Option<DVec3>, String> {
     if data.is_empty() || data.starts_with("//") {
         return Ok(None);
     }
-    let mut fields = data
+    let fields = data
         .split(|c: char| c == ',' || c.is_ascii_whitespace())
         .filter(|f| !f.is_empty());
-    let mut xyz = [0.0f64; 3];
-    for (i, v) in xyz.iter_mut().enumerate() {
-        let field = fields
-            .next()
-            .ok_or_else(|| format!("expected 3 coordinates, found {i}"))?;
-        *v = field
-            .parse::<f64>()
-            .map_err(|_| format!("not a number: {:?}", truncate(field)))?;
-    }
-    Ok(Some(DVec3::from_array(xyz)))
+    coordinates(fields, |f: &str| f.parse().ok(), truncate).map(Some)
 }
 
 /// A decimal number of an ASCII field, exactly as `str::parse::<f64>`
