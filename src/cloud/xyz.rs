@@ -55,9 +55,10 @@ fn malformed(location: Location, reason: String) -> CloudError {
 
 /// One line: `Ok(None)` for blank or comment lines, the point otherwise.
 ///
-/// Works on the bytes of ASCII lines (nearly all), which is about three
-/// times faster than splitting a `str`; a line with other bytes takes
-/// [`parse_text_line`], which the ASCII path matches exactly.
+/// Works on the bytes of ASCII lines (nearly all), with 40 % fewer
+/// instructions than splitting a `str` (callgrind, 800,000 scanner lines);
+/// a line with other bytes takes [`parse_text_line`], which the ASCII path
+/// matches exactly.
 fn parse_line(raw: &[u8]) -> Result<Option<DVec3>, String> {
     if !raw.is_ascii() {
         let text = std::str::from_utf8(raw).map_err(|_| "not UTF-8 text".to_owned())?;
