@@ -155,107 +155,192 @@ pub fn encode_order(skeleton: &Skeleton) -> Vec<NodeId> {
 /// The loop still checks the grammar itself (the tests feed it raw streams),
 /// and its work is linear in the number of symbols.
 pub fn decode(code: &ChainCode) -> Result<Skeleton, ChainError> {
-    let header = &code.header;
-    header.validate()?;
-    let radii = &code.radii_q;
-    let symbols = &code.symbols;
-    let d = header.voxel_size_m;
-    let root = header.root_position.as_dvec3();
-    let step = f64::from(header.radius_step_m);
-    let radius = |q: u32| (f64::from(q) * step) as f32;
-    let place = |v: [i32; 3]| {
-        (root + DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])) * d).as_vec3()
-    };
-
-    let mut nodes = Vec::with_capacity(radii.len().min(symbols.len() + 1));
-    let Some(&root_q) = radii.first() else {
-        return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
-    };
-    nodes.push(Node {
-        position: header.root_position,
-        radius_m: radius(root_q),
-        parent: None,
-    });
-
-    let mut queue: VecDeque<(u32, [i32; 3])> = VecDeque::new();
-    let mut cur_node = 0u32;
-    let mut cur_v = [0i32; 3];
-    let mut pred = [0i32; 3];
-    let mut corr = [0i32; 3];
+    code.header.validate()?;
+    let mut turtle = Turtle::new(code)?;
+    // The current internode's net moves and whether it has any. They stay
+    // out of `Turtle` so that the loop over the moves, most of the symbols,
+    // keeps them in registers (decoding took 5 % longer with them inside).
+    let mut correction = [0i32; 3];
     let mut has_moves = false;
-    let mut markers_allowed = true;
-    let mut finished = symbols.is_empty();
-    for (pos, &s) in symbols.iter().enumerate() {
+    for (pos, &s) in code.symbols.iter().enumerate() {
         if s < FORK {
-            let m = MOVES[usize::from(s)];
-            for a in 0..3 {
-                corr[a] = corr[a].wrapping_add(m[a]);
+            for (c, d) in correction.iter_mut().zip(MOVES[usize::from(s)]) {
+                *c = c.wrapping_add(d);
             }
             has_moves = true;
             continue;
         }
-        if s == FORK && markers_allowed && !has_moves {
-            queue.push_back((cur_node, cur_v));
-            continue;
-        }
-        if s > END {
-            return Err(ChainError::InvalidSymbol {
-                position: pos,
-                symbol: s,
-            });
-        }
-        let overflow = ChainError::CoordinateOverflow { position: pos };
-        let delta = add(pred, corr).ok_or(overflow.clone())?;
-        let v = add(cur_v, delta).ok_or(overflow)?;
-        let idx = nodes.len();
-        let Some(&q) = radii.get(idx) else {
-            return Err(ChainError::RadiiCount {
-                nodes: idx + 1,
-                radii: radii.len(),
-            });
-        };
-        nodes.push(Node {
-            position: place(v),
-            radius_m: radius(q),
-            parent: Some(NodeId::from_index(cur_node as usize)),
-        });
-        cur_node = idx as u32;
-        cur_v = v;
-        pred = delta;
-        corr = [0; 3];
+        turtle.read_terminator(pos, s, correction, has_moves)?;
+        correction = [0; 3];
         has_moves = false;
-        markers_allowed = s == FORK;
-        if s == FORK {
-            queue.push_back((cur_node, cur_v));
-        } else if s == TIP {
-            match queue.pop_front() {
-                Some((fork, fork_v)) => {
-                    cur_node = fork;
-                    cur_v = fork_v;
-                    pred = [0; 3];
-                }
-                None => {
-                    let left = symbols.len() - pos - 1;
-                    if left > 0 {
-                        return Err(ChainError::TrailingSymbols { count: left });
-                    }
-                    finished = true;
+    }
+    turtle.finish()
+}
+
+/// The decoder's state machine (`docs/chaincode.md` §4) between
+/// internodes: where it stands, on which branch, and the queued laterals.
+struct Turtle<'a> {
+    code: &'a ChainCode,
+    /// `code.radii_q`, one per node in decoding order.
+    radii: &'a [u32],
+    /// Root position relative to the anchor, voxel size and radius step,
+    /// in `f64` (each node is placed from them in one rounding).
+    root: DVec3,
+    voxel_size_m: f64,
+    radius_step_m: f64,
+    nodes: Vec<Node>,
+    /// Laterals still to decode: fork node and its voxel, oldest first.
+    queue: VecDeque<(u32, [i32; 3])>,
+    /// Current node and its voxel.
+    node: u32,
+    voxel: [i32; 3],
+    /// The previous internode's step on this branch; zero at a branch start.
+    history: [i32; 3],
+    /// A 6 read now (without moves) is a zero-length fork internode.
+    markers_allowed: bool,
+    /// The 7 that found the queue empty was read.
+    finished: bool,
+}
+
+impl<'a> Turtle<'a> {
+    /// At the root, voxel `(0,0,0)`, which takes the first radius.
+    fn new(code: &'a ChainCode) -> Result<Self, ChainError> {
+        let header = &code.header;
+        let Some(&root_q) = code.radii_q.first() else {
+            return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
+        };
+        let mut turtle = Turtle {
+            code,
+            radii: &code.radii_q,
+            root: header.root_position.as_dvec3(),
+            voxel_size_m: header.voxel_size_m,
+            radius_step_m: f64::from(header.radius_step_m),
+            nodes: Vec::with_capacity(code.radii_q.len().min(code.symbols.len() + 1)),
+            queue: VecDeque::new(),
+            node: 0,
+            voxel: [0; 3],
+            history: [0; 3],
+            markers_allowed: true,
+            finished: code.symbols.is_empty(),
+        };
+        let radius_m = turtle.radius_m(root_q);
+        turtle.nodes.push(Node {
+            position: header.root_position,
+            radius_m,
+            parent: None,
+        });
+        Ok(turtle)
+    }
+
+    /// Reads the fork, tip or end symbol `s` at position `pos`, after the
+    /// moves of the current internode (their net `correction`; `has_moves`
+    /// whether there were any).
+    #[inline(always)]
+    fn read_terminator(
+        &mut self,
+        pos: usize,
+        s: u8,
+        correction: [i32; 3],
+        has_moves: bool,
+    ) -> Result<(), ChainError> {
+        match s {
+            FORK if self.markers_allowed && !has_moves => {
+                self.queue.push_back((self.node, self.voxel));
+            }
+            FORK | TIP | END => {
+                self.end_internode(pos, s, correction)?;
+                if s == TIP {
+                    self.resume(pos)?;
                 }
             }
+            _ => {
+                return Err(ChainError::InvalidSymbol {
+                    position: pos,
+                    symbol: s,
+                });
+            }
         }
+        Ok(())
     }
-    if !finished {
-        return Err(ChainError::Unterminated {
-            queued: queue.len(),
+
+    /// Ends the current internode with terminator `s`: a new node at the
+    /// predicted voxel plus `correction`, with the next radius.
+    #[inline(always)]
+    fn end_internode(&mut self, pos: usize, s: u8, correction: [i32; 3]) -> Result<(), ChainError> {
+        let overflow = ChainError::CoordinateOverflow { position: pos };
+        let step = add(self.history, correction).ok_or(overflow.clone())?;
+        let voxel = add(self.voxel, step).ok_or(overflow)?;
+        let idx = self.nodes.len();
+        let Some(&q) = self.radii.get(idx) else {
+            return Err(ChainError::RadiiCount {
+                nodes: idx + 1,
+                radii: self.radii.len(),
+            });
+        };
+        self.nodes.push(Node {
+            position: self.place(voxel),
+            radius_m: self.radius_m(q),
+            parent: Some(NodeId::from_index(self.node as usize)),
         });
+        self.node = idx as u32;
+        self.voxel = voxel;
+        self.history = step;
+        self.markers_allowed = s == FORK;
+        if s == FORK {
+            self.queue.push_back((self.node, self.voxel));
+        }
+        Ok(())
     }
-    if nodes.len() != radii.len() {
-        return Err(ChainError::RadiiCount {
-            nodes: nodes.len(),
-            radii: radii.len(),
-        });
+
+    /// After a tip: resume at the oldest queued lateral, whose first
+    /// internode is coded in full, or end the code if none is left.
+    fn resume(&mut self, pos: usize) -> Result<(), ChainError> {
+        match self.queue.pop_front() {
+            Some((fork, fork_voxel)) => {
+                self.node = fork;
+                self.voxel = fork_voxel;
+                self.history = [0; 3];
+            }
+            None => {
+                let left = self.code.symbols.len() - pos - 1;
+                if left > 0 {
+                    return Err(ChainError::TrailingSymbols { count: left });
+                }
+                self.finished = true;
+            }
+        }
+        Ok(())
     }
-    Ok(Skeleton::from_nodes(header.anchor.clone(), nodes)?)
+
+    /// The skeleton, once the whole stream was read.
+    fn finish(self) -> Result<Skeleton, ChainError> {
+        if !self.finished {
+            return Err(ChainError::Unterminated {
+                queued: self.queue.len(),
+            });
+        }
+        let radii = self.radii.len();
+        if self.nodes.len() != radii {
+            return Err(ChainError::RadiiCount {
+                nodes: self.nodes.len(),
+                radii,
+            });
+        }
+        Ok(Skeleton::from_nodes(
+            self.code.header.anchor.clone(),
+            self.nodes,
+        )?)
+    }
+
+    fn radius_m(&self, q: u32) -> f32 {
+        (f64::from(q) * self.radius_step_m) as f32
+    }
+
+    /// A voxel's centre relative to the anchor, rounded once to `f32`.
+    fn place(&self, v: [i32; 3]) -> glam::Vec3 {
+        let v = DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
+        (self.root + v * self.voxel_size_m).as_vec3()
+    }
 }
 
 /// Voxel size in metres for the chosen resolution (Eq. 2 with the mean
@@ -462,6 +547,28 @@ mod tests {
         bad.symbols = vec![2, 7];
         bad.radii_q = vec![1];
         assert!(matches!(decode(&bad), Err(ChainError::RadiiCount { .. })));
+    }
+
+    #[test]
+    fn a_stream_that_leaves_the_voxel_range_is_refused_where_it_does() {
+        // One +z move per internode: each step is one voxel longer than the
+        // one it repeats, so the height after n internodes is n(n+1)/2 and
+        // leaves i32 at internode 65,536.
+        let n = 70_000;
+        let mut code = encode(
+            &Skeleton::new(Anchor::default(), 0.2),
+            &ChainOptions::default(),
+        )
+        .unwrap();
+        code.symbols = [2, END].repeat(n);
+        code.symbols.push(TIP);
+        code.radii_q = vec![1; n + 2];
+        assert_eq!(
+            decode(&code).unwrap_err(),
+            ChainError::CoordinateOverflow {
+                position: 2 * 65_535 + 1
+            }
+        );
     }
 
     #[test]
