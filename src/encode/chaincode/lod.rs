@@ -71,20 +71,12 @@ impl Scan {
 /// Checks `symbols` against the grammar and finds its branches and fork
 /// groups; `n_radii` must equal the number of nodes the symbols describe.
 pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
-    let mut branches = Vec::new();
-    let mut groups: Vec<ForkGroup> = Vec::new();
-    let mut queue = std::collections::VecDeque::new();
-    let mut open_group: Option<usize> = None;
+    let mut scanner = Scanner::new(symbols.is_empty());
+    // Whether the current internode has a move: as in `dbf6::decode`, kept
+    // out of `Scanner` for the loop over the moves.
     let mut has_moves = false;
-    let mut nodes = 1usize;
-    let mut current = Branch {
-        symbols: (0, 0),
-        nodes: (0, 1),
-        group: None,
-    };
-    let mut finished = symbols.is_empty();
     for (pos, &s) in symbols.iter().enumerate() {
-        if finished {
+        if scanner.finished {
             return Err(ChainError::TrailingSymbols {
                 count: symbols.len() - pos,
             });
@@ -92,25 +84,15 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
         match s {
             0..=5 => {
                 has_moves = true;
-                open_group = None;
-                continue;
+                scanner.open_group = None;
             }
-            FORK if !has_moves && (open_group.is_some() || pos == 0) => {
-                let g = *open_group.get_or_insert_with(|| {
-                    groups.push(ForkGroup {
-                        start: pos,
-                        len: 0,
-                        ends_internode: false,
-                        branch: branches.len(),
-                        node: nodes - 1,
-                    });
-                    groups.len() - 1
-                });
-                groups[g].len += 1;
-                queue.push_back(g);
-                continue;
+            FORK if !has_moves && (scanner.open_group.is_some() || pos == 0) => {
+                scanner.fork_marker(pos);
             }
-            FORK | TIP | END => {}
+            FORK | TIP | END => {
+                scanner.end_internode(pos, s);
+                has_moves = false;
+            }
             _ => {
                 return Err(ChainError::InvalidSymbol {
                     position: pos,
@@ -118,50 +100,116 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
                 });
             }
         }
-        nodes += 1;
-        has_moves = false;
-        open_group = None;
+    }
+    scanner.finish(n_radii)
+}
+
+/// [`scan`]'s state: the branches and fork groups found so far, the one
+/// being read and the laterals queued.
+struct Scanner {
+    branches: Vec<Branch>,
+    groups: Vec<ForkGroup>,
+    /// Fork groups whose laterals are still to come, oldest first.
+    queue: std::collections::VecDeque<usize>,
+    /// The fork group a zero-length internode (a further 6) would join.
+    open_group: Option<usize>,
+    /// Nodes so far, the root included.
+    nodes: usize,
+    current: Branch,
+    /// The 7 that found the queue empty was read (or the code is empty).
+    finished: bool,
+}
+
+impl Scanner {
+    fn new(empty: bool) -> Self {
+        Scanner {
+            branches: Vec::new(),
+            groups: Vec::new(),
+            queue: std::collections::VecDeque::new(),
+            open_group: None,
+            nodes: 1,
+            current: Branch {
+                symbols: (0, 0),
+                nodes: (0, 1),
+                group: None,
+            },
+            finished: empty,
+        }
+    }
+
+    /// A zero-length fork internode at `pos`: one more lateral of the open
+    /// group (a new group at the root).
+    fn fork_marker(&mut self, pos: usize) {
+        let g = match self.open_group {
+            Some(g) => g,
+            None => self.open(pos, false),
+        };
+        self.groups[g].len += 1;
+        self.queue.push_back(g);
+    }
+
+    /// Starts a fork group at `pos` on the current node and returns it.
+    fn open(&mut self, pos: usize, ends_internode: bool) -> usize {
+        self.groups.push(ForkGroup {
+            start: pos,
+            len: 0,
+            ends_internode,
+            branch: self.branches.len(),
+            node: self.nodes - 1,
+        });
+        let g = self.groups.len() - 1;
+        self.open_group = Some(g);
+        g
+    }
+
+    /// An internode ending in `s` (6, 7 or 8) at `pos`.
+    fn end_internode(&mut self, pos: usize, s: u8) {
+        self.nodes += 1;
+        self.open_group = None;
         if s == FORK {
-            groups.push(ForkGroup {
-                start: pos,
-                len: 1,
-                ends_internode: true,
-                branch: branches.len(),
-                node: nodes - 1,
-            });
-            open_group = Some(groups.len() - 1);
-            queue.push_back(groups.len() - 1);
+            let g = self.open(pos, true);
+            self.groups[g].len = 1;
+            self.queue.push_back(g);
         } else if s == TIP {
-            current.symbols.1 = pos + 1;
-            current.nodes.1 = nodes;
-            branches.push(current);
-            match queue.pop_front() {
+            self.current.symbols.1 = pos + 1;
+            self.current.nodes.1 = self.nodes;
+            self.branches.push(self.current);
+            match self.queue.pop_front() {
                 Some(g) => {
-                    current = Branch {
+                    self.current = Branch {
                         symbols: (pos + 1, pos + 1),
-                        nodes: (nodes, nodes),
+                        nodes: (self.nodes, self.nodes),
                         group: Some(g),
                     };
                 }
-                None => finished = true,
+                None => self.finished = true,
             }
         }
     }
-    if !finished {
-        return Err(ChainError::Unterminated {
-            queued: queue.len(),
-        });
+
+    /// The scan, once every symbol was read; `n_radii` must equal the
+    /// number of nodes.
+    fn finish(mut self, n_radii: usize) -> Result<Scan, ChainError> {
+        if !self.finished {
+            return Err(ChainError::Unterminated {
+                queued: self.queue.len(),
+            });
+        }
+        if self.branches.is_empty() {
+            // The empty code: the trunk is the root alone.
+            self.branches.push(self.current);
+        }
+        if self.nodes != n_radii {
+            return Err(ChainError::RadiiCount {
+                nodes: self.nodes,
+                radii: n_radii,
+            });
+        }
+        Ok(Scan {
+            branches: self.branches,
+            groups: self.groups,
+        })
     }
-    if symbols.is_empty() {
-        branches.push(current);
-    }
-    if nodes != n_radii {
-        return Err(ChainError::RadiiCount {
-            nodes,
-            radii: n_radii,
-        });
-    }
-    Ok(Scan { branches, groups })
 }
 
 /// Pseudocode 2: the code of the skeleton without the lateral branches whose
