@@ -7,7 +7,9 @@
 //! - [`mesh_fit`]: the same figures for the swept triangle mesh users
 //!   download;
 //! - [`run`]: one report row per tree (reconstruction timed as a median);
-//! - [`report`]: the report's table rendering and timing helpers.
+//! - [`report`]: the report's table rendering and timing helpers;
+//! - [`targets`]: how many synthetic trees meet each of issue 3's per-tree
+//!   accuracy targets.
 //!
 //! Plain computation; the CLI does the file IO.
 
@@ -16,3 +18,4 @@ pub mod fit;
 pub mod mesh_fit;
 pub mod report;
 pub mod run;
+pub mod targets;

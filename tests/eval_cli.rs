@@ -1,0 +1,71 @@
+//! `silva eval` end to end: the report's per-tree target tallies agree with
+//! its rows.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+#[test]
+fn airborne_report_counts_the_trees_that_meet_each_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_silva"))
+        .args(["eval", "--synthetic", "2", "--scan", "als", "--repeat", "1"])
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let truths: Vec<&Value> = json["trees"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| &t["truth"])
+        .collect();
+    let f = |t: &Value, k: &str| t[k].as_f64().unwrap();
+    let counted = |ok: &dyn Fn(&Value) -> bool| truths.iter().filter(|t| ok(t)).count();
+    let recall = counted(&|t| f(t, "recall") >= 0.90);
+    let precision = counted(&|t| f(t, "precision") >= 0.85);
+    let height = counted(&|t| f(t, "height_error_m").abs() <= 0.3);
+    let base = counted(&|t| f(t, "trunk_base_offset_m") <= 0.5);
+    let tallies: Vec<(String, u64, u64)> = json["summary"]["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            (
+                t["target"].as_str().unwrap().to_string(),
+                t["met"].as_u64().unwrap(),
+                t["trees"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let names: Vec<&str> = tallies.iter().map(|t| t.0.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "recall >= 0.90",
+            "precision >= 0.85",
+            "|height error| <= 0.3 m",
+            "trunk base offset <= 0.5 m",
+            "all four"
+        ]
+    );
+    let met: Vec<u64> = tallies.iter().map(|t| t.1).collect();
+    assert_eq!(
+        met[..4],
+        [recall, precision, height, base].map(|n| n as u64)
+    );
+    assert!(met[4] <= *met[..4].iter().min().unwrap());
+    assert!(tallies.iter().all(|t| t.2 == 2));
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("synthetic trees meeting each target"),
+        "{table}"
+    );
+}
