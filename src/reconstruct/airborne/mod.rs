@@ -399,7 +399,7 @@ fn ground_note(split: &GroundSplit) -> String {
     let how = match split.method {
         GroundMethod::Classification => "by LAS class 2",
         GroundMethod::Geometry => "by terrain fit",
-        GroundMethod::None => "none found; all points treated as tree",
+        GroundMethod::None => return "ground: none found; all points treated as tree".into(),
     };
     let slope = split
         .terrain
@@ -483,4 +483,32 @@ fn eigen_spreads(c: glam::DMat3) -> [f64; 3] {
     };
     eig.sort_by(|x, y| y.total_cmp(x));
     eig.map(|e| e.max(0.0).sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// A clip without ground says so in words, not as "0 points none found".
+    #[test]
+    fn the_ground_note_reads_as_a_sentence_with_and_without_ground() {
+        let cloud = |points| PointCloud::from_points(DVec3::ZERO, points);
+        let none = GroundSplit {
+            tree: cloud(vec![Vec3::Z]),
+            ground: cloud(Vec::new()),
+            method: GroundMethod::None,
+            terrain: None,
+        };
+        assert_eq!(
+            ground_note(&none),
+            "ground: none found; all points treated as tree"
+        );
+        let classified = GroundSplit {
+            ground: cloud(vec![Vec3::ZERO, Vec3::X]),
+            method: GroundMethod::Classification,
+            ..none
+        };
+        assert_eq!(ground_note(&classified), "ground: 2 points by LAS class 2");
+    }
 }
