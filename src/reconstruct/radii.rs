@@ -15,10 +15,12 @@
 //!   a stem keeps the pipes of its shed branches, Shinozaki et al. 1964).
 //!   Radii then taper linearly along each chain and never grow towards the
 //!   tips.
-//! - Dense scans: where enough points surround an internode its radius is
-//!   measured (`section_radius`: spread less the scanner noise, or a
-//!   circle fit on one-sided thick sections), smoothed along its branch and
-//!   fitted to the rule that radii never grow towards the tips.
+//! - Dense scans (not airborne ones, whose returns around a branch come
+//!   from the twigs and leaves about it): where enough points surround an
+//!   internode its radius is measured (`section_radius`: spread less the
+//!   scanner noise, or a circle fit on one-sided thick sections), smoothed
+//!   along its branch and fitted to the rule that radii never grow towards
+//!   the tips.
 
 use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};

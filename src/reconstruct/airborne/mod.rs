@@ -20,8 +20,9 @@
 //! 5. `direction_field` — §5.3, Eq. 5 rotated about the centreline;
 //! 6. `skeleton_produce` — §5.4, Algorithm 2 (greedy, α/β/φ constraints);
 //! 7. provisional pipe-model radii — §5.5, Eq. 6. The shared radius stage
-//!    re-assigns radii for both pipelines; these only make the skeleton
-//!    usable on its own.
+//!    re-assigns radii for both pipelines (for this one the pipe model
+//!    alone: crown returns are not branch sections); these only make the
+//!    skeleton usable on its own.
 //!
 //! Coordinates: the paper's y axis is up; silva's z is. The skeleton's anchor
 //! is the absolute trunk base, so `anchor.origin + position` is the real
