@@ -119,8 +119,13 @@ impl TrunkFit {
 
     /// A note for [`super::Reconstruction::notes`] when the DBH is estimated.
     pub fn note(&self) -> Option<String> {
-        (self.method == DbhMethod::Estimated)
-            .then(|| format!("DBH estimated allometrically: {}", self.reason))
+        (self.method == DbhMethod::Estimated).then(|| {
+            format!(
+                "DBH estimated from height and crown diameter (Jucker et al. 2017's \
+                     angiosperm allometry): {}",
+                self.reason
+            )
+        })
     }
 }
 
@@ -436,8 +441,13 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
     // branches.
     slice_fit(&slice, points, Claim::NearestIsTrunk, params)
         .or_else(|first| {
-            slice_fit(&slice, points, Claim::NearTrunk, params)
-                .map_err(|second| format!("{first}; with all points near the trunk axis, {second}"))
+            slice_fit(&slice, points, Claim::NearTrunk, params).map_err(|second| {
+                if second == first {
+                    first
+                } else {
+                    format!("{first}; with all points near the trunk axis, {second}")
+                }
+            })
         })
         .unwrap_or_else(estimate)
 }
@@ -452,8 +462,9 @@ fn slice_fit(
     let flat = slice.points(points, claim);
     if flat.len() < params.min_trunk_points {
         return Err(format!(
-            "only {} trunk points at {:.1}–{:.1} m (at least {} needed)",
+            "only {} trunk {} at {:.1}–{:.1} m (at least {} needed)",
             flat.len(),
+            if flat.len() == 1 { "point" } else { "points" },
             params.slice_m.0,
             params.slice_m.1,
             params.min_trunk_points
@@ -1175,6 +1186,31 @@ mod tests {
         // A fit thicker than the stem's law is held to it.
         let thick = PipeLaw { tip_radius_m: 0.05 }.min(stem_law);
         assert_eq!(thick, stem_law);
+    }
+
+    /// A trunk with one return at breast height: the DBH is estimated, and
+    /// the note gives the reason once, in the singular, with the rule used.
+    #[test]
+    fn an_estimated_dbh_says_why_once_and_by_which_rule() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 3.0), 0.2);
+        let crown = Crown {
+            height_m: 12.0,
+            base_height_m: 3.0,
+            diameter_m: 6.0,
+            area_m2: 28.0,
+        };
+        let one_return = [Vec3::new(0.25, 0.0, 1.3)];
+        let fit = fit_trunk(&tree, &one_return, &crown, &Params::default());
+        assert_eq!(fit.method, DbhMethod::Estimated);
+        assert_eq!(fit.dbh_m(), allometric_dbh_m(12.0, 6.0));
+        assert_eq!(
+            fit.note().as_deref(),
+            Some(
+                "DBH estimated from height and crown diameter (Jucker et al. 2017's angiosperm \
+                 allometry): only 1 trunk point at 1.0–1.6 m (at least 30 needed)"
+            )
+        );
     }
 
     #[test]
