@@ -5,13 +5,17 @@
 //! Per skeleton: the plain chain code (`chaincode/`), both compressed kinds
 //! (`chaincode_stream/`), LsJSON with and without tip rules (`lsjson/`), and
 //! one of each stored form for the content sniffing (`decode_stored/`).
+//! And small synthetic scans for the whole reconstruction (`reconstruct/`,
+//! in that target's input form: a pipeline byte, then `i16` millimetres).
 
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 use silva::encode::chaincode::{self, ChainCode, ChainOptions};
 use silva::encode::lsystem::{self, LsOptions};
-use silva::synth::{Species, TreeParams, generate};
+use silva::synth::{
+    AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
+};
 use silva::{Anchor, NodeId, Skeleton};
 
 /// A fork with a thin lateral, as in the chain code module's example.
@@ -119,10 +123,62 @@ fn main() {
             tree.len()
         );
     }
+    for (name, bytes) in scan_seeds() {
+        write(&root.join("reconstruct"), &name, &bytes);
+    }
     // The decoders must accept what they are seeded with.
     for (_, tree) in &trees {
         let code = chaincode::encode(tree, &ChainOptions::default()).expect("encodable");
         let back = ChainCode::decompress(&code.compress(), &chaincode::Limits::default());
         assert_eq!(back.as_ref(), Ok(&code));
     }
+}
+
+/// Synthetic scans as inputs of the `reconstruct` target: a byte for the
+/// pipeline (0 auto, 1 dense, 2 airborne), then per point three
+/// little-endian `i16` millimetres relative to the tree's anchor (every
+/// `n`-th point, at most 3,000).
+fn scan_seeds() -> Vec<(String, Vec<u8>)> {
+    let tree = |species, seed| generate(&TreeParams::preset(species), seed, Anchor::default());
+    let sparse_tls = TlsOptions {
+        points_per_m2: 20.0,
+        ..TlsOptions::default()
+    };
+    let scans = [
+        (
+            "birch-als",
+            2u8,
+            simulate_als(&tree(Species::Birch, 2), &AlsOptions::default(), 2),
+        ),
+        (
+            "pine-als",
+            0,
+            simulate_als(&tree(Species::Pine, 4), &AlsOptions::default(), 4),
+        ),
+        (
+            "poplar-tls",
+            1,
+            simulate_tls(&tree(Species::Poplar, 3), &sparse_tls, 3),
+        ),
+        (
+            "oak-tls",
+            0,
+            simulate_tls(&tree(Species::Oak, 1), &sparse_tls, 1),
+        ),
+    ];
+    scans
+        .into_iter()
+        .map(|(name, mode, cloud)| {
+            let step = cloud.len().div_ceil(3_000).max(1);
+            let mut bytes = vec![mode];
+            for p in cloud.points.iter().step_by(step).take(3_000) {
+                for v in [p.x, p.y, p.z] {
+                    let mm = (v * 1000.0).round().clamp(-32_768.0, 32_767.0) as i16;
+                    bytes.extend_from_slice(&mm.to_le_bytes());
+                }
+            }
+            println!("{name}: {} points", (bytes.len() - 1) / 6);
+            (format!("{name}.bin"), bytes)
+        })
+        .collect()
 }
