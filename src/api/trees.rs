@@ -112,25 +112,12 @@ pub(super) async fn create_tree(
         }
         other => ApiError::BadRequest(other.body_text()),
     })?;
-    if let Some(date) = &query.acquired {
-        let format = time::macros::format_description!("[year]-[month]-[day]");
-        time::Date::parse(date, &format).map_err(|_| {
-            ApiError::BadRequest(format!("acquired: expected YYYY-MM-DD, found {date:?}"))
-        })?;
-    }
+    check_acquired(query.acquired.as_deref())?;
     let options = JobOptions {
         mode: query.mode.unwrap_or_default(),
         crs: query.crs.clone(),
     };
-    let decoded = {
-        let _slot = state
-            .decode_slots
-            .acquire()
-            .await
-            .map_err(|e| ApiError::Internal(e.to_string()))?;
-        let max_points = state.config.max_points;
-        tokio::task::spawn_blocking(move || crate::jobs::prepare_scan(&body, max_points)).await??
-    };
+    let decoded = decode_upload(&state, body).await?;
     let ingested = state
         .store
         .ingest(&NewIngest {
@@ -166,6 +153,30 @@ pub(super) async fn create_tree(
         format!("{base}/v1/jobs/{}", job.id),
         axum::Json(Job::from_row(&job, &base)),
     ))
+}
+
+/// Refuses an acquisition date that is not `YYYY-MM-DD`.
+fn check_acquired(date: Option<&str>) -> Result<(), ApiError> {
+    let Some(date) = date else { return Ok(()) };
+    let format = time::macros::format_description!("[year]-[month]-[day]");
+    time::Date::parse(date, &format)
+        .map(|_| ())
+        .map_err(|_| ApiError::BadRequest(format!("acquired: expected YYYY-MM-DD, found {date:?}")))
+}
+
+/// The upload read and LAZ-compressed off the async workers, at most
+/// `decode_slots` at a time (each holds a whole cloud in memory).
+async fn decode_upload(
+    state: &AppState,
+    body: Bytes,
+) -> Result<crate::jobs::PreparedScan, ApiError> {
+    let _slot = state
+        .decode_slots
+        .acquire()
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let max_points = state.config.max_points;
+    Ok(tokio::task::spawn_blocking(move || crate::jobs::prepare_scan(&body, max_points)).await??)
 }
 
 /// Answer for a `wait=true` upload whose job ended.

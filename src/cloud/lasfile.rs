@@ -427,33 +427,9 @@ fn precheck_layers<R: Read + Seek>(
     points: u64,
     file_len: u64,
 ) -> Result<(), CloudError> {
-    let layered = vlr
-        .items()
-        .first()
-        .is_some_and(|i| matches!(i.version(), 3 | 4));
-    if layered != (compressor == LAYERED_CHUNKED) {
-        // laz would then look for the chunks elsewhere than LASzip writes them.
-        return Err(malformed(
-            Format::Laz,
-            Location::Header,
-            format!("LASzip compressor {compressor} does not match the item versions"),
-        ));
-    }
-    if !layered {
+    let Some(layers) = layers_per_chunk(vlr, compressor)? else {
         return Ok(());
-    }
-    let layers = vlr
-        .items()
-        .iter()
-        .map(layer_count)
-        .try_fold(0u64, |sum, n| n.map(|n| sum + n))
-        .ok_or_else(|| {
-            malformed(
-                Format::Laz,
-                Location::Header,
-                "LASzip items mix layered and point-wise compression",
-            )
-        })?;
+    };
     let data_start = input.stream_position()?;
     let prefix = vlr.items_size() + 4 + 4 * layers;
     // Past the 8-byte chunk table offset.
@@ -468,28 +444,14 @@ fn precheck_layers<R: Read + Seek>(
             )));
         }
         input.seek(SeekFrom::Start(at + vlr.items_size()))?;
-        let mut word = [0u8; 4];
-        input.read_exact(&mut word)?;
-        let count = u64::from(u32::from_le_bytes(word));
-        let mut layer_bytes = 0u64;
-        for _ in 0..layers {
-            input.read_exact(&mut word)?;
-            layer_bytes += u64::from(u32::from_le_bytes(word));
-        }
+        let (count, layer_bytes) = read_chunk_sizes(input, layers)?;
         let end = at + prefix + layer_bytes;
         if end > file_len {
             return Err(bad(format!(
                 "truncated or corrupt: chunk {chunk} declares {layer_bytes} bytes of layers but the file ends at byte {file_len}"
             )));
         }
-        // The decoder's own rule for where a chunk ends.
-        let in_chunk = if !vlr.uses_variable_size_chunks() {
-            u64::from(vlr.chunk_size())
-        } else if let Some(t) = table {
-            t.as_ref().get(chunk).map_or(0, |e| e.point_count)
-        } else {
-            count
-        };
+        let in_chunk = points_in_chunk(vlr, table, chunk, count);
         if in_chunk == 0 {
             // The decoder then never leaves this chunk; nothing further to check.
             break;
@@ -500,6 +462,65 @@ fn precheck_layers<R: Read + Seek>(
     }
     input.seek(SeekFrom::Start(data_start))?;
     Ok(())
+}
+
+/// The number of layers in each chunk of a layered LAZ (LASzip v3/v4 items),
+/// `None` for point-wise compression; an error when the compressor and the
+/// item versions disagree or the items mix both kinds.
+fn layers_per_chunk(vlr: &LazVlr, compressor: u16) -> Result<Option<u64>, CloudError> {
+    let layered = vlr
+        .items()
+        .first()
+        .is_some_and(|i| matches!(i.version(), 3 | 4));
+    if layered != (compressor == LAYERED_CHUNKED) {
+        // laz would then look for the chunks elsewhere than LASzip writes them.
+        return Err(malformed(
+            Format::Laz,
+            Location::Header,
+            format!("LASzip compressor {compressor} does not match the item versions"),
+        ));
+    }
+    if !layered {
+        return Ok(None);
+    }
+    vlr.items()
+        .iter()
+        .map(layer_count)
+        .try_fold(0u64, |sum, n| n.map(|n| sum + n))
+        .ok_or_else(|| {
+            malformed(
+                Format::Laz,
+                Location::Header,
+                "LASzip items mix layered and point-wise compression",
+            )
+        })
+        .map(Some)
+}
+
+/// A layered chunk's point count and the summed size of its `layers`
+/// layers, read from just after its raw first point.
+fn read_chunk_sizes<R: Read>(input: &mut R, layers: u64) -> Result<(u64, u64), CloudError> {
+    let mut word = [0u8; 4];
+    input.read_exact(&mut word)?;
+    let count = u64::from(u32::from_le_bytes(word));
+    let mut layer_bytes = 0u64;
+    for _ in 0..layers {
+        input.read_exact(&mut word)?;
+        layer_bytes += u64::from(u32::from_le_bytes(word));
+    }
+    Ok((count, layer_bytes))
+}
+
+/// Points in chunk `chunk` by the decoder's own rule: the fixed chunk size,
+/// else the chunk table's count, else the count the chunk declares.
+fn points_in_chunk(vlr: &LazVlr, table: Option<&ChunkTable>, chunk: usize, count: u64) -> u64 {
+    if !vlr.uses_variable_size_chunks() {
+        u64::from(vlr.chunk_size())
+    } else if let Some(t) = table {
+        t.as_ref().get(chunk).map_or(0, |e| e.point_count)
+    } else {
+        count
+    }
 }
 
 /// Where the chunk table starts, following LASzip's convention: the first

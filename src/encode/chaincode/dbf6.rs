@@ -50,19 +50,9 @@ const MOVES: [[i32; 3]; 6] = [
 /// The result holds at most `Limits::default()` symbols and nodes, so that
 /// every code this function produces can be read back with default limits.
 pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, ChainError> {
-    let step = opts.radius_step_m;
-    if !(step.is_finite() && step > 0.0) {
-        return Err(ChainError::InvalidOptions("radius step must be positive"));
-    }
+    let step = checked_radius_step(skeleton, opts)?;
     let limits = Limits::default();
-    if skeleton.len() > limits.max_nodes {
-        return Err(ChainError::TooManyNodes {
-            found: skeleton.len(),
-            limit: limits.max_nodes,
-        });
-    }
     let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
-    let root = skeleton.position(NodeId::ROOT);
     let targets = scaled_positions(skeleton, voxel_size_m)?;
     let order = encode_order(skeleton);
 
@@ -94,16 +84,13 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
             });
         }
         push_moves(&mut symbols, correction);
-        let kids = skeleton.children(node).len();
         let after_fork = is_main && (parent == NodeId::ROOT || skeleton.is_fork(parent));
-        if moves == 0 && after_fork && kids >= 2 {
-            symbols.extend([MOVE_POS_X, MOVE_NEG_X]);
-        }
-        match kids {
-            0 => symbols.push(TIP),
-            1 => symbols.push(END),
-            k => symbols.extend(std::iter::repeat_n(FORK, k - 1)),
-        }
+        push_terminator(
+            &mut symbols,
+            moves,
+            after_fork,
+            skeleton.children(node).len(),
+        );
         radii_q.push(quantise(skeleton.radius(node), step)?);
     }
     Ok(ChainCode {
@@ -115,11 +102,44 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
             },
             radius_step_m: step,
             anchor: skeleton.anchor().clone(),
-            root_position: root,
+            root_position: skeleton.position(NodeId::ROOT),
         },
         symbols,
         radii_q,
     })
+}
+
+/// The radius step of `opts`, once it and the skeleton's size are known to
+/// be encodable (at most `Limits::default()` nodes).
+fn checked_radius_step(skeleton: &Skeleton, opts: &ChainOptions) -> Result<f32, ChainError> {
+    let step = opts.radius_step_m;
+    if !(step.is_finite() && step > 0.0) {
+        return Err(ChainError::InvalidOptions("radius step must be positive"));
+    }
+    let limits = Limits::default();
+    if skeleton.len() > limits.max_nodes {
+        return Err(ChainError::TooManyNodes {
+            found: skeleton.len(),
+            limit: limits.max_nodes,
+        });
+    }
+    Ok(step)
+}
+
+/// The end of an internode of `moves` moves whose node has `kids` children
+/// (docs/chaincode.md §4): 7 at a tip, 8 on a chain, `kids − 1` times 6 at
+/// a fork. A main extension of a fork (or the root's first child) with a
+/// zero correction that forks again writes the cancelling pair `0 3` first:
+/// its 6s would otherwise read as more children of the fork before it.
+fn push_terminator(symbols: &mut Vec<u8>, moves: u32, after_fork: bool, kids: usize) {
+    if moves == 0 && after_fork && kids >= 2 {
+        symbols.extend([MOVE_POS_X, MOVE_NEG_X]);
+    }
+    match kids {
+        0 => symbols.push(TIP),
+        1 => symbols.push(END),
+        k => symbols.extend(std::iter::repeat_n(FORK, k - 1)),
+    }
 }
 
 /// The original node ids in the order [`decode`] creates them: decoded node

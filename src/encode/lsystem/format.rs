@@ -177,6 +177,8 @@ impl LsJson {
         Ok(ls)
     }
 
+    /// The document of a parsed file, each field checked (see
+    /// docs/lsjson.md for what each may hold).
     fn from_raw(raw: RawLsJson) -> Result<LsJson, LsError> {
         if raw.format != FORMAT || !(1..=VERSION).contains(&raw.version) {
             return Err(LsError::Version {
@@ -184,70 +186,19 @@ impl LsJson {
                 version: raw.version,
             });
         }
-        let unit_m = match (raw.version, raw.dimensions.unit_m) {
-            (1, None) => 1.0,
-            (1, Some(_)) => {
-                return Err(LsError::Invalid {
-                    field: "dimensions.unit_m",
-                    reason: "is not part of version 1",
-                });
-            }
-            (_, unit) => unit.ok_or(LsError::Invalid {
-                field: "dimensions.unit_m",
-                reason: "is required from version 2",
-            })?,
-        };
-        require(
-            unit_m.is_finite() && unit_m > 0.0,
-            "dimensions.unit_m",
-            "must be finite and positive",
-        )?;
-        let anchor = DVec3::from_array(raw.trunk.anchor);
-        require(anchor.is_finite(), "trunk.anchor", "must be finite")?;
-        let radius = raw.trunk.radius;
-        require(
-            radius.is_finite() && radius >= 0.0,
-            "trunk.radius",
-            "must be finite and non-negative",
-        )?;
+        let unit_m = unit_m(&raw)?;
+        check_numbers(&raw)?;
+        let rules = lex_rules(&raw.rules)?;
         let d = &raw.dimensions;
-        require(
-            d.forward.is_finite() && d.rotation.is_finite() && d.roll.is_finite(),
-            "dimensions",
-            "must be finite",
-        )?;
-        let e = &raw.error;
-        let stats = [
-            e.bound_m,
-            e.radius_bound_m,
-            e.radius_bound_rel,
-            e.max_m,
-            e.mean_m,
-            e.radius_max_m,
-            e.generalisation_max_m,
-        ];
-        require(
-            stats.iter().all(|v| v.is_finite() && *v >= 0.0),
-            "error",
-            "must be finite and non-negative",
-        )?;
-        let mut rules = BTreeMap::new();
-        for (name, body) in &raw.rules {
-            let key = match name.as_bytes() {
-                [c] if c.is_ascii_alphabetic() => *c,
-                _ => return Err(LsError::RuleName(name.clone())),
-            };
-            rules.insert(key, lex(body, &format!("rules.{name}"))?);
-        }
         Ok(LsJson {
             recursions: raw.recursions,
             axiom: lex(&raw.axiom, "axiom")?,
             rules,
             anchor: Anchor {
-                origin: anchor,
+                origin: DVec3::from_array(raw.trunk.anchor),
                 crs: raw.trunk.crs,
             },
-            trunk_radius_m: radius,
+            trunk_radius_m: raw.trunk.radius,
             dimensions: Dimensions {
                 unit_m,
                 forward: d.forward,
@@ -283,6 +234,77 @@ impl LsJson {
     pub fn axiom_text(&self) -> String {
         print(&self.axiom)
     }
+}
+
+/// The unit of `F`'s length: 1 m in version 1, which has no such field;
+/// stated, finite and positive from version 2.
+fn unit_m(raw: &RawLsJson) -> Result<f64, LsError> {
+    let unit_m = match (raw.version, raw.dimensions.unit_m) {
+        (1, None) => 1.0,
+        (1, Some(_)) => {
+            return Err(LsError::Invalid {
+                field: "dimensions.unit_m",
+                reason: "is not part of version 1",
+            });
+        }
+        (_, unit) => unit.ok_or(LsError::Invalid {
+            field: "dimensions.unit_m",
+            reason: "is required from version 2",
+        })?,
+    };
+    require(
+        unit_m.is_finite() && unit_m > 0.0,
+        "dimensions.unit_m",
+        "must be finite and positive",
+    )?;
+    Ok(unit_m)
+}
+
+/// The anchor, trunk radius, turtle dimensions and error figures are
+/// finite; the radius and the error figures are not negative.
+fn check_numbers(raw: &RawLsJson) -> Result<(), LsError> {
+    let anchor = DVec3::from_array(raw.trunk.anchor);
+    require(anchor.is_finite(), "trunk.anchor", "must be finite")?;
+    let radius = raw.trunk.radius;
+    require(
+        radius.is_finite() && radius >= 0.0,
+        "trunk.radius",
+        "must be finite and non-negative",
+    )?;
+    let d = &raw.dimensions;
+    require(
+        d.forward.is_finite() && d.rotation.is_finite() && d.roll.is_finite(),
+        "dimensions",
+        "must be finite",
+    )?;
+    let e = &raw.error;
+    let stats = [
+        e.bound_m,
+        e.radius_bound_m,
+        e.radius_bound_rel,
+        e.max_m,
+        e.mean_m,
+        e.radius_max_m,
+        e.generalisation_max_m,
+    ];
+    require(
+        stats.iter().all(|v| v.is_finite() && *v >= 0.0),
+        "error",
+        "must be finite and non-negative",
+    )
+}
+
+/// The rules' bodies lexed, keyed by their one-letter names.
+fn lex_rules(raw: &BTreeMap<String, String>) -> Result<BTreeMap<u8, Vec<Symbol>>, LsError> {
+    let mut rules = BTreeMap::new();
+    for (name, body) in raw {
+        let key = match name.as_bytes() {
+            [c] if c.is_ascii_alphabetic() => *c,
+            _ => return Err(LsError::RuleName(name.clone())),
+        };
+        rules.insert(key, lex(body, &format!("rules.{name}"))?);
+    }
+    Ok(rules)
 }
 
 fn require(ok: bool, field: &'static str, reason: &'static str) -> Result<(), LsError> {
