@@ -1,5 +1,5 @@
-//! `silva eval` end to end: the report's per-tree target tallies agree with
-//! its rows.
+//! `silva eval` end to end: the report's per-tree target tallies and
+//! summary medians agree with its rows.
 
 use std::process::Command;
 
@@ -63,6 +63,18 @@ fn airborne_report_counts_the_trees_that_meet_each_target() {
     );
     assert!(met[4] <= *met[..4].iter().min().unwrap());
     assert!(tallies.iter().all(|t| t.2 == 2));
+    // Two trees: each median is the mean of the two rows' values (f32 in
+    // the rows, so compared to f32 precision).
+    let mean_of = |k: &str, g: fn(f64) -> f64| truths.iter().map(|t| g(f(t, k))).sum::<f64>() / 2.0;
+    let summary = &json["summary"];
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+    let volume = f(summary, "median_volume_ratio");
+    assert!(close(volume, mean_of("volume_ratio", |v| v)), "{volume}");
+    let height = f(summary, "median_abs_height_error_m");
+    assert!(
+        close(height, mean_of("height_error_m", f64::abs)),
+        "{height}"
+    );
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
         table.contains("synthetic trees meeting each target"),

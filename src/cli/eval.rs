@@ -73,6 +73,10 @@ struct Summary {
     median_wall_time_ms: Option<f64>,
     median_recall: Option<f64>,
     median_precision: Option<f64>,
+    /// Median of the synthetic trees' |height error|, metres.
+    median_abs_height_error_m: Option<f64>,
+    /// Median of the synthetic trees' reconstructed over true wood volume.
+    median_volume_ratio: Option<f64>,
     /// Synthetic trees meeting each of issue 3's per-tree targets for the
     /// scan (empty without synthetic trees).
     targets: Vec<Tally>,
@@ -210,6 +214,10 @@ fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {
         median_wall_time_ms: of(|r| Some(r.wall_time_ms)),
         median_recall: of(|r| r.truth.as_ref().map(|t| f64::from(t.recall))),
         median_precision: of(|r| r.truth.as_ref().map(|t| f64::from(t.precision))),
+        median_abs_height_error_m: of(|r| {
+            r.truth.as_ref().map(|t| f64::from(t.height_error_m.abs()))
+        }),
+        median_volume_ratio: of(|r| r.truth.as_ref().map(|t| f64::from(t.volume_ratio))),
         targets: targets
             .into_iter()
             .map(|t| Tally {
