@@ -8,20 +8,26 @@
 //! A tree must keep the promises of issue 3 and 4: finite nodes, positive
 //! radii that never grow towards the tips, finite metrics; its LsJSON
 //! decodes to the same topology with every node within the stated 1 mm;
-//! its compressed chain code decodes within `√3·d/2`.
+//! its compressed chain code decodes within `√3·d/2` (plus the `f32`
+//! rounding of the output, as docs/chaincode.md §2 states).
 #![no_main]
 
 use glam::{DVec3, Vec3};
 use libfuzzer_sys::fuzz_target;
-use silva::{NodeId, Skeleton};
 use silva::cloud::PointCloud;
 use silva::encode::chaincode::{self, ChainOptions};
 use silva::encode::lsystem::{self, Limits, LsJson, LsOptions};
 use silva::reconstruct::{Mode, Options, Reconstruction, reconstruct};
+use silva::{NodeId, Skeleton};
 
 /// Points per input at most: enough for a sparse airborne tree, few enough
 /// for thousands of runs a minute.
 const MAX_POINTS: usize = 3_000;
+
+/// What the chain code's guarantee adds to `√3·d/2` (docs/chaincode.md §2):
+/// the decoded coordinates' rounding to `f32`, below 10 µm within 100 m of
+/// the root (these clouds span ±32.8 m).
+const F32_ROUNDING_M: f64 = 1e-5;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, rest)) = data.split_first() else {
@@ -101,6 +107,9 @@ fn check_chain_code(s: &Skeleton) {
     for (i, &orig) in chaincode::encode_order(s).iter().enumerate() {
         let at = back.position(NodeId::from_index(i)).as_dvec3();
         let d = at.distance(s.position(orig).as_dvec3());
-        assert!(d <= bound * (1.0 + 1e-6), "chain code node {orig:?} off by {d} m > {bound} m");
+        assert!(
+            d <= bound + F32_ROUNDING_M,
+            "chain code node {orig:?} off by {d} m > {bound} m"
+        );
     }
 }
