@@ -56,7 +56,8 @@ pub struct Params {
     /// Smallest branch radius, in metres.
     pub min_radius_m: f32,
     /// Measure radii from the points around each internode where enough
-    /// points are (dense scans); the pipe model fills in elsewhere.
+    /// points are; the pipe model fills in elsewhere. Dense scans only:
+    /// [`crate::reconstruct::reconstruct`] turns it off for airborne clips.
     pub measured_radii: bool,
     /// Fewest points around an internode for a measured radius.
     pub min_section_points: usize,
