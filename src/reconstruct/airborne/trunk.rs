@@ -89,65 +89,32 @@ impl Trunk {
 /// removed, at least one point) standing on `terrain` (the lowest tree point
 /// is taken as ground level when there is none). §4.2.
 pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Params) -> Trunk {
-    let v_low = tree
-        .iter()
-        .copied()
-        .min_by(|a, b| a.z.total_cmp(&b.z))
-        .unwrap_or(Vec3::ZERO);
-    let ground_at = |xy: Vec2| terrain.map_or(v_low.z, |t| t.surface_at(xy.x, xy.y).min(v_low.z));
-    let (v_min, v_max) = tree
-        .iter()
-        .fold((v_low, v_low), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-    let centre_xy = footprint_centre(tree);
-    let base_xy = lowest_layer_centre(tree, centre_xy);
-    let g_b = base_xy.extend(ground_at(base_xy));
-    let v_c = tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32;
-    let half_diagonal = ((v_max - v_min) * 0.5)
-        .truncate()
-        .length()
-        .max(f32::EPSILON);
-    let lowest = LowestPointTest::run(tree, v_low, centre_xy, half_diagonal, params);
-    // The paper leaves the spacing of inserted points open. Half of r_p
-    // keeps each trunk point short of k trunk neighbours within r_p, so
-    // Algorithm 1's kNN pass links the trunk to the crown points around it
-    // instead of letting the trunk form a closed clique.
-    let spacing = params.neighbour_radius_m * 0.5;
+    let crown = CrownFrame::of(tree, terrain);
+    let lowest = LowestPointTest::run(
+        tree,
+        crown.v_low,
+        crown.centre_xy,
+        crown.half_diagonal,
+        params,
+    );
     // Stem returns take precedence over Eq. 3: the returns of a column
     // average out the trunk's lean, whereas n_avg from the two or three
     // returns next to v_low tilts by 20° and more at AHN densities, which
     // Eq. 3 turns into an offset of h·tan(λ1) at the ground (0.46 m from a
     // stem hit 1.2 m up on a synthetic birch whose stem column is 0.01 m
     // from the true base).
-    let column_xy = terrain.and_then(|t| stem_column(tree, t, half_diagonal, centre_xy));
-    let (rule, points) = match (lowest.direction, column_xy) {
-        (Some(n), None) => {
-            // Eq. 3: v_t = v_low − n_avg·t, t = h / n_avg.z reaches the ground.
-            let h = v_low.z - ground_at(v_low.truncate());
-            let mut root = v_low - n * (h / n.z);
-            root.z = ground_at(root.truncate());
-            let low = above(root, v_low, params.voxel_m);
-            let crown_base = crown_base_z(tree, v_low, params.trunk_sphere_m);
-            let points = rising_trunk(root, low, crown_base, v_c, spacing);
-            (TrunkRule::FromLowestPoint, points)
-        }
-        (_, Some(xy)) => {
-            let root = xy.extend(ground_at(xy));
-            let low = above(root, root, params.voxel_m);
-            let crown_base = crown_base_z(tree, root, params.trunk_sphere_m);
-            let points = rising_trunk(root, low, crown_base, v_c, spacing);
-            (TrunkRule::OnStemReturns, points)
-        }
-        (None, None) => {
-            // Eq. 4: v_t = v_c − (v_c − g_b)/‖v_c − g_b‖·t between g_b and v_c.
-            (
-                TrunkRule::FromCrownCentre,
-                line(g_b, above(g_b, v_c, params.voxel_m), spacing),
-            )
-        }
+    let column_xy =
+        terrain.and_then(|t| stem_column(tree, t, crown.half_diagonal, crown.centre_xy));
+    let (rule, mut points) = match (lowest.direction, column_xy) {
+        (Some(n), None) => (TrunkRule::FromLowestPoint, crown.eq3_trunk(tree, n, params)),
+        (_, Some(xy)) => (
+            TrunkRule::OnStemReturns,
+            crown.column_trunk(tree, xy, params),
+        ),
+        (None, None) => (TrunkRule::FromCrownCentre, crown.eq4_trunk(tree, params)),
     };
-    let mut points = points;
     let leader_top_m = if params.leader {
-        extend_with_leader(&mut points, tree, spacing, params.voxel_m)
+        extend_with_leader(&mut points, tree, trunk_spacing(params), params.voxel_m)
     } else {
         None
     };
@@ -157,6 +124,94 @@ pub(super) fn add_trunk(tree: &[Vec3], terrain: Option<&Terrain>, params: &Param
         lambda1_deg: lowest.lambda1_deg,
         lambda2: lowest.lambda2,
         leader_top_m,
+    }
+}
+
+/// Spacing of the inserted trunk points. The paper leaves it open. Half of
+/// r_p keeps each trunk point short of k trunk neighbours within r_p, so
+/// Algorithm 1's kNN pass links the trunk to the crown points around it
+/// instead of letting the trunk form a closed clique.
+fn trunk_spacing(params: &Params) -> f32 {
+    params.neighbour_radius_m * 0.5
+}
+
+/// The crown's reference points of §4.2, and the ground under it.
+struct CrownFrame<'t> {
+    terrain: Option<&'t Terrain>,
+    /// The lowest tree point.
+    v_low: Vec3,
+    /// Centre of the crown's ground footprint ([`footprint_centre`]).
+    centre_xy: Vec2,
+    /// The tree points' centroid.
+    v_c: Vec3,
+    /// Half the horizontal diagonal of the points' bounding box (λ2's
+    /// scale).
+    half_diagonal: f32,
+}
+
+impl<'t> CrownFrame<'t> {
+    fn of(tree: &[Vec3], terrain: Option<&'t Terrain>) -> Self {
+        let v_low = tree
+            .iter()
+            .copied()
+            .min_by(|a, b| a.z.total_cmp(&b.z))
+            .unwrap_or(Vec3::ZERO);
+        let (v_min, v_max) = tree
+            .iter()
+            .fold((v_low, v_low), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        CrownFrame {
+            terrain,
+            v_low,
+            centre_xy: footprint_centre(tree),
+            v_c: tree.iter().copied().sum::<Vec3>() / tree.len().max(1) as f32,
+            half_diagonal: ((v_max - v_min) * 0.5)
+                .truncate()
+                .length()
+                .max(f32::EPSILON),
+        }
+    }
+
+    /// Ground height under `xy`: the terrain's surface, never above the
+    /// lowest tree point; that point's height without a terrain.
+    fn ground_at(&self, xy: Vec2) -> f32 {
+        self.terrain
+            .map_or(self.v_low.z, |t| t.surface_at(xy.x, xy.y).min(self.v_low.z))
+    }
+
+    /// Eq. 3: v_t = v_low − n_avg·t, with t = h / n_avg.z reaching the
+    /// ground, rising through v_low.
+    fn eq3_trunk(&self, tree: &[Vec3], n_avg: Vec3, params: &Params) -> Vec<Vec3> {
+        let v_low = self.v_low;
+        let h = v_low.z - self.ground_at(v_low.truncate());
+        let mut root = v_low - n_avg * (h / n_avg.z);
+        root.z = self.ground_at(root.truncate());
+        self.rising_from(tree, root, v_low, params)
+    }
+
+    /// A trunk standing on the ground at the stem column `xy`.
+    fn column_trunk(&self, tree: &[Vec3], xy: Vec2, params: &Params) -> Vec<Vec3> {
+        let root = xy.extend(self.ground_at(xy));
+        self.rising_from(tree, root, root, params)
+    }
+
+    /// A trunk from `root` straight up to the crown's lowest layer above
+    /// `through` (see [`rising_trunk`]), then on to v_c.
+    fn rising_from(&self, tree: &[Vec3], root: Vec3, through: Vec3, params: &Params) -> Vec<Vec3> {
+        let low = above(root, through, params.voxel_m);
+        let crown_base = crown_base_z(tree, through, params.trunk_sphere_m);
+        rising_trunk(root, low, crown_base, self.v_c, trunk_spacing(params))
+    }
+
+    /// Eq. 4: v_t = v_c − (v_c − g_b)/‖v_c − g_b‖·t between g_b and v_c,
+    /// with g_b on the ground under [`lowest_layer_centre`].
+    fn eq4_trunk(&self, tree: &[Vec3], params: &Params) -> Vec<Vec3> {
+        let base_xy = lowest_layer_centre(tree, self.centre_xy);
+        let g_b = base_xy.extend(self.ground_at(base_xy));
+        line(
+            g_b,
+            above(g_b, self.v_c, params.voxel_m),
+            trunk_spacing(params),
+        )
     }
 }
 
