@@ -180,6 +180,20 @@ impl Ways {
         self.count += 1;
         way
     }
+
+    /// One way that writes no turn and no pitch: the step of a
+    /// zero-length internode needs none.
+    fn set_straight(&mut self) {
+        let none = Choice {
+            symbol: None,
+            cost: 0,
+        };
+        self.count = 0;
+        for list in self.push() {
+            list.clear();
+            list.push(none);
+        }
+    }
 }
 
 /// The equivalent ways to turn the heading onto `direction` (unit) before a
@@ -356,15 +370,7 @@ pub(crate) fn write_internode(
             ways,
         );
     } else {
-        let none = Choice {
-            symbol: None,
-            cost: 0,
-        };
-        ways.count = 0;
-        for list in ways.push() {
-            list.clear();
-            list.push(none);
-        }
+        ways.set_straight();
     }
     length_choices(length / dims.unit_m, fine_m / dims.unit_m, lengths);
     favoured.add_near(
@@ -383,16 +389,7 @@ pub(crate) fn write_internode(
         .unwrap_or_else(|| search.last());
     let error = trials.error(&chosen, target);
     let state = trials.state(&chosen);
-    let [turn, pitches] = &turns[chosen.way];
-    out.extend(
-        [
-            turn[chosen.turn].symbol,
-            pitches[chosen.pitch].symbol,
-            lengths[chosen.length].symbol,
-        ]
-        .into_iter()
-        .flatten(),
-    );
+    out.extend(chosen.symbols(turns, lengths));
     *turtle = state;
     error
 }
@@ -529,6 +526,25 @@ struct Combo {
     length: usize,
     /// Index of the (way, turn, pitch) triple among all of them.
     pair: usize,
+}
+
+impl Combo {
+    /// The symbols this combination writes: its turn, pitch and step (each
+    /// may be none).
+    fn symbols<'c>(
+        &self,
+        turns: &'c [[Vec<Choice>; 2]],
+        lengths: &'c [Choice],
+    ) -> impl Iterator<Item = Symbol> + 'c {
+        let [turn, pitches] = &turns[self.way];
+        [
+            turn[self.turn].symbol,
+            pitches[self.pitch].symbol,
+            lengths[self.length].symbol,
+        ]
+        .into_iter()
+        .flatten()
+    }
 }
 
 /// The combinations of turns and lengths, cheapest in bytes first and, at
