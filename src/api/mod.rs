@@ -118,11 +118,7 @@ impl Server {
     /// starts serving on `config.listen` (port 0 picks a free port; see
     /// [`Server::local_addr`]).
     pub async fn start(config: Config) -> Result<Server, ServeError> {
-        if config.read_requires_key && config.api_keys.iter().all(|k| k.trim().is_empty()) {
-            return Err(ServeError::Config(
-                "SILVA_READ_REQUIRES_KEY is set but SILVA_API_KEYS holds no key".into(),
-            ));
-        }
+        check_keys(&config)?;
         let store = Store::connect(&config.database_url, config.db_max_connections).await?;
         let keys = ApiKeys::new(&config.api_keys);
         if keys.is_empty() {
@@ -142,41 +138,16 @@ impl Server {
             decode_slots: Semaphore::new(workers.max(2)),
             config,
         });
-        let listener = tokio::net::TcpListener::bind(state.config.listen)
-            .await
-            .map_err(|source| ServeError::Bind {
-                addr: state.config.listen,
-                source,
-            })?;
-        let addr = listener.local_addr().map_err(|source| ServeError::Bind {
-            addr: state.config.listen,
-            source,
-        })?;
+        let (listener, addr) = bind(state.config.listen).await?;
         let (shutdown, signal) = watch::channel(false);
         let worker_pool = spawn_workers(
             store,
-            WorkerConfig {
-                workers,
-                lease: Duration::from_secs(state.config.job_lease_secs.max(1)),
-                poll_interval: Duration::from_millis(500),
-                max_attempts: 3,
-                max_points: state.config.max_points,
-                time_limit: state.config.job_time_limit(),
-            },
+            worker_config(&state.config, workers),
             state.events.clone(),
             state.metrics.jobs.clone(),
             signal.clone(),
         );
-        let app = router(state.clone());
-        let mut stop = signal;
-        let http = tokio::spawn(async move {
-            axum::serve(listener, app)
-                .with_graceful_shutdown(async move {
-                    // An error means the sender is gone: stop as well.
-                    let _ = stop.wait_for(|stop| *stop).await;
-                })
-                .await
-        });
+        let http = serve_http(listener, router(state.clone()), signal);
         tracing::info!(%addr, backend = state.store.backend(), workers, "silva is serving");
         Ok(Server {
             addr,
@@ -209,6 +180,58 @@ impl Server {
         self.workers.stop(&self.state.store, grace).await;
         self.state.store.close().await;
     }
+}
+
+/// A server that requires a key to read must have one.
+fn check_keys(config: &Config) -> Result<(), ServeError> {
+    if config.read_requires_key && config.api_keys.iter().all(|k| k.trim().is_empty()) {
+        return Err(ServeError::Config(
+            "SILVA_READ_REQUIRES_KEY is set but SILVA_API_KEYS holds no key".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Binds `listen` and returns the listener with the address it got (port
+/// 0 picks a free port).
+async fn bind(listen: SocketAddr) -> Result<(tokio::net::TcpListener, SocketAddr), ServeError> {
+    let bind_error = |source| ServeError::Bind {
+        addr: listen,
+        source,
+    };
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(bind_error)?;
+    let addr = listener.local_addr().map_err(bind_error)?;
+    Ok((listener, addr))
+}
+
+/// The job workers' settings from the service's configuration.
+fn worker_config(config: &Config, workers: usize) -> WorkerConfig {
+    WorkerConfig {
+        workers,
+        lease: Duration::from_secs(config.job_lease_secs.max(1)),
+        poll_interval: Duration::from_millis(500),
+        max_attempts: 3,
+        max_points: config.max_points,
+        time_limit: config.job_time_limit(),
+    }
+}
+
+/// Serves `app` on `listener` until `stop` turns true.
+fn serve_http(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    mut stop: watch::Receiver<bool>,
+) -> JoinHandle<std::io::Result<()>> {
+    tokio::spawn(async move {
+        axum::serve(listener, app)
+            .with_graceful_shutdown(async move {
+                // An error means the sender is gone: stop as well.
+                let _ = stop.wait_for(|stop| *stop).await;
+            })
+            .await
+    })
 }
 
 /// The full router with its middleware.
