@@ -695,6 +695,71 @@ async fn cityjson_seq_streams_the_trees_of_an_area() {
     .await;
 }
 
+/// Stores a finished tree at `at` in `crs` through the queue's own calls,
+/// with a one-internode skeleton: no reconstruction, so that a test can
+/// fill several pages quickly.
+async fn store_tree(store: &silva::store::Store, at: DVec3, crs: &str) {
+    let ingest = silva::store::NewIngest {
+        crs: Some(crs.into()),
+        format: "xyz".into(),
+        point_count: 3,
+        cloud_laz: vec![1, 2, 3],
+        options: "{}".into(),
+        ..Default::default()
+    };
+    store.ingest(&ingest).await.unwrap();
+    let job = store
+        .claim_job("filler", Duration::from_secs(60), 3)
+        .await
+        .unwrap()
+        .expect("the job just queued");
+    let mut skeleton = Skeleton::new(silva::Anchor::at(at), 0.2);
+    skeleton.add_child(silva::NodeId::ROOT, glam::Vec3::new(0.0, 0.0, 5.0), 0.1);
+    let model = silva::store::NewModel {
+        skeleton: skeleton.to_json(),
+        lsystem: "{}".into(),
+        chaincode: vec![0],
+        parameters: "{}".into(),
+        metrics: "{}".into(),
+        internodes: 1,
+        location: at.to_array(),
+        crs: None,
+        height_m: 5.0,
+    };
+    assert!(store.complete_job(&job, "filler", &model).await.unwrap());
+}
+
+/// The stream takes its CRS from the first tree and drops the others from
+/// the first page; whether more pages follow depends on the page the
+/// database gave. It stopped after a first page that had lost trees to
+/// that filter, leaving out every tree after it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cityjson_seq_pages_on_past_a_first_page_with_trees_in_another_crs() {
+    on_both(|url| async move {
+        let store = silva::store::Store::connect(&url, 2).await.unwrap();
+        let at = |i: u32| ORIGIN + DVec3::new(f64::from(i % 20), f64::from(i / 20), 0.0);
+        // Tree ids grow with time: one tree fixes the stream's CRS, five in
+        // another CRS follow within the first page, then 120 more.
+        store_tree(&store, at(0), "EPSG:28992").await;
+        for i in 1..=5 {
+            store_tree(&store, at(i), "EPSG:7415").await;
+        }
+        for i in 6..126 {
+            store_tree(&store, at(i), "EPSG:28992").await;
+        }
+        store.close().await;
+        let srv = TestServer::start(config(&url)).await;
+        let (x, y) = (ORIGIN.x, ORIGIN.y);
+        let bbox = format!("{},{},{},{}", x - 1.0, y - 1.0, x + 30.0, y + 30.0);
+        let res = srv.get(&format!("/v1/cityjson?bbox={bbox}&lod=0")).await;
+        assert_eq!(res.status(), 200);
+        let text = res.text().await.unwrap();
+        assert_eq!(assert_valid_cityjson_seq(&text), 121);
+        srv.stop().await;
+    })
+    .await;
+}
+
 /// Found by schemathesis, whose client asks for gzip: the compression layer
 /// polled the finished stream again, the stream panicked, and every
 /// compressed CityJSONSeq was cut off before its first byte.

@@ -169,6 +169,9 @@ pub(super) async fn cityjson_seq(
     // The first page fixes the CRS and the transform of the whole stream.
     let first = state.store.trees_with_skeletons(&filter).await?;
     let first = parse_page(first)?;
+    // Whether more pages follow depends on the page the database gave,
+    // before the CRS filter below drops any of its trees.
+    let after = next_after(&first);
     if filter.crs.is_none() {
         filter.crs = first.first().and_then(|(row, _)| row.crs.clone());
     }
@@ -177,41 +180,20 @@ pub(super) async fn cityjson_seq(
         .into_iter()
         .filter(|(row, _)| filter.crs.is_none() || row.crs == filter.crs)
         .collect();
-    let bbox = filter.bbox.unwrap_or_default();
-    // Millimetre-snapped so that integer vertices stay exact.
-    let translate = DVec3::new(
-        (bbox[0] * 1000.0).round() / 1000.0,
-        (bbox[1] * 1000.0).round() / 1000.0,
-        0.0,
-    );
+    let translate = seq_translate(filter.bbox.unwrap_or_default());
     let header = cityjson::seq_header(translate, filter.crs.as_deref(), None).to_string() + "\n";
-    let full_page = first.len() == SEQ_PAGE as usize;
-    let next_after = first.last().map(|(row, _)| row.id);
     let first_lines = render(first, lod, translate).await;
-    let rest = futures::stream::unfold(
-        (full_page.then_some(next_after).flatten(), filter),
-        move |(after, filter)| {
-            let state = state.clone();
-            async move {
-                let filter = TreeFilter {
-                    after: Some(after?),
-                    ..filter
-                };
-                let page = match state.store.trees_with_skeletons(&filter).await {
-                    Ok(page) => page,
-                    Err(err) => return Some((Err(stream_error(&err)), (None, filter))),
-                };
-                let full = page.len() == SEQ_PAGE as usize;
-                let last = page.last().map(|(row, _)| row.id);
-                let trees = match parse_page(page) {
-                    Ok(trees) => trees,
-                    Err(err) => return Some((Err(stream_error(&err)), (None, filter))),
-                };
-                let lines = render(trees, lod, translate).await;
-                Some((lines, (full.then_some(last).flatten(), filter)))
-            }
-        },
-    );
+    let rest = futures::stream::unfold((after, filter), move |(after, filter)| {
+        let state = state.clone();
+        async move {
+            let filter = TreeFilter {
+                after: Some(after?),
+                ..filter
+            };
+            let (lines, after) = next_page(&state, &filter, lod, translate).await;
+            Some((lines, (after, filter)))
+        }
+    });
     // Fused: the compression layer polls the body again after its end, and
     // an unfused `unfold` panics then, cutting every compressed stream off.
     let body = futures::stream::iter([Ok(header), first_lines])
@@ -222,6 +204,42 @@ pub(super) async fn cityjson_seq(
         Body::from_stream(body),
     )
         .into_response())
+}
+
+/// The stream's `translate`: the bbox's lower corner, millimetre-snapped so
+/// that integer vertices stay exact.
+fn seq_translate(bbox: [f64; 4]) -> DVec3 {
+    DVec3::new(
+        (bbox[0] * 1000.0).round() / 1000.0,
+        (bbox[1] * 1000.0).round() / 1000.0,
+        0.0,
+    )
+}
+
+/// The id after which the next page starts, when `page` was a full one.
+fn next_after<T>(page: &[(TreeRow, T)]) -> Option<Uuid> {
+    (page.len() == SEQ_PAGE as usize)
+        .then(|| page.last().map(|(row, _)| row.id))
+        .flatten()
+}
+
+/// The feature lines of the page `filter` selects, and where the page after
+/// it starts (none after the last page or an error).
+async fn next_page(
+    state: &AppState,
+    filter: &TreeFilter,
+    lod: Lod,
+    translate: DVec3,
+) -> (Result<String, std::io::Error>, Option<Uuid>) {
+    let page = match state.store.trees_with_skeletons(filter).await {
+        Ok(page) => page,
+        Err(err) => return (Err(stream_error(&err)), None),
+    };
+    let after = next_after(&page);
+    match parse_page(page) {
+        Ok(trees) => (render(trees, lod, translate).await, after),
+        Err(err) => (Err(stream_error(&err)), None),
+    }
 }
 
 /// Skeletons of a page, parsed.
