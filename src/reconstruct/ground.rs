@@ -243,59 +243,30 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
     let origin = points
         .iter()
         .fold(Vec2::splat(f32::INFINITY), |o, p| o.min(p.truncate()));
-    // Per cell: the lowest point, the highest z and the point count.
-    let mut cells: HashMap<(i32, i32), (glam::Vec3, f32, u32)> = HashMap::new();
-    for &p in points {
-        cells
-            .entry(cell_of(origin, p.x, p.y))
-            .and_modify(|(low, high, n)| {
-                if p.z < low.z {
-                    *low = p;
-                }
-                *high = high.max(p.z);
-                *n += 1;
-            })
-            .or_insert((p, p.z, 1));
-    }
-    let bare: std::collections::HashSet<(i32, i32)> = cells
-        .iter()
-        .filter(|(_, (low, high, n))| {
-            *n >= BARE_CELL_MIN_POINTS && high - low.z <= GROUND_TOLERANCE_M
-        })
-        .map(|(k, _)| *k)
-        .collect();
-    let lowest: HashMap<(i32, i32), glam::Vec3> =
-        cells.into_iter().map(|(k, (low, _, _))| (k, low)).collect();
-    if lowest.len() < 3 {
+    let cells = cell_stats(points, origin);
+    if cells.len() < 3 {
         return None;
     }
-    let candidates: Vec<((i32, i32), DVec3)> =
-        lowest.into_iter().map(|(k, p)| (k, p.as_dvec3())).collect();
-    // Start from the lower half of the candidates: under a crown the lowest
-    // point of a cell is often a branch, never lower than the ground.
-    let mut heights: Vec<f64> = candidates.iter().map(|(_, p)| p.z).collect();
-    heights.sort_by(f64::total_cmp);
-    let median = heights[heights.len() / 2];
-    let mut inlier: Vec<bool> = candidates.iter().map(|(_, p)| p.z <= median).collect();
-    let mut plane = fit_plane(&candidates, &inlier)?;
-    for limit in RESIDUAL_LIMITS_M {
-        let next: Vec<bool> = candidates
-            .iter()
-            .map(|(_, p)| (p.z - eval_plane(plane, *p)).abs() <= limit)
-            .collect();
-        if next.iter().filter(|&&b| b).count() < 3 {
-            break;
-        }
-        inlier = next;
-        plane = fit_plane(&candidates, &inlier)?;
-    }
+    let bare: Vec<(i32, i32)> = cells
+        .iter()
+        .filter(|(_, c)| c.count >= BARE_CELL_MIN_POINTS && c.high - c.low.z <= GROUND_TOLERANCE_M)
+        .map(|(k, _)| *k)
+        .collect();
+    // Sorted by cell, so that the plane's sums do not depend on the hash
+    // map's order.
+    let mut candidates: Vec<((i32, i32), DVec3)> = cells
+        .into_iter()
+        .map(|(k, c)| (k, c.low.as_dvec3()))
+        .collect();
+    candidates.sort_by_key(|(k, _)| *k);
+    let (plane, inlier) = fit_robust_plane(&candidates)?;
     let residual_m: HashMap<(i32, i32), f32> = candidates
         .iter()
         .zip(&inlier)
         .filter(|(_, keep)| **keep)
         .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
         .collect();
-    let bare_cells = residual_m.keys().filter(|k| bare.contains(k)).count();
+    let bare_cells = bare.iter().filter(|k| residual_m.contains_key(k)).count();
     let surface_m = mean_ground(points, origin, plane, &residual_m);
     Some(Terrain {
         plane,
@@ -305,6 +276,63 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         residual_m,
         origin,
     })
+}
+
+/// What [`fit_terrain`] keeps of the points in one grid cell.
+struct CellStats {
+    /// The lowest point.
+    low: glam::Vec3,
+    /// The highest z.
+    high: f32,
+    /// The number of points.
+    count: u32,
+}
+
+/// The points' grid cells with their lowest point, highest z and count.
+fn cell_stats(points: &[glam::Vec3], origin: Vec2) -> HashMap<(i32, i32), CellStats> {
+    let mut cells: HashMap<(i32, i32), CellStats> = HashMap::new();
+    for &p in points {
+        cells
+            .entry(cell_of(origin, p.x, p.y))
+            .and_modify(|c| {
+                if p.z < c.low.z {
+                    c.low = p;
+                }
+                c.high = c.high.max(p.z);
+                c.count += 1;
+            })
+            .or_insert(CellStats {
+                low: p,
+                high: p.z,
+                count: 1,
+            });
+    }
+    cells
+}
+
+/// The plane through the cells' lowest points `candidates`, refitted to
+/// those within each of [`RESIDUAL_LIMITS_M`] in turn, with the final
+/// inliers. It starts from the lower half of the candidates: under a crown
+/// the lowest point of a cell is often a branch, never lower than the
+/// ground.
+fn fit_robust_plane(candidates: &[((i32, i32), DVec3)]) -> Option<([f64; 3], Vec<bool>)> {
+    let mut heights: Vec<f64> = candidates.iter().map(|(_, p)| p.z).collect();
+    heights.sort_by(f64::total_cmp);
+    let median = heights[heights.len() / 2];
+    let mut inlier: Vec<bool> = candidates.iter().map(|(_, p)| p.z <= median).collect();
+    let mut plane = fit_plane(candidates, &inlier)?;
+    for limit in RESIDUAL_LIMITS_M {
+        let next: Vec<bool> = candidates
+            .iter()
+            .map(|(_, p)| (p.z - eval_plane(plane, *p)).abs() <= limit)
+            .collect();
+        if next.iter().filter(|&&b| b).count() < 3 {
+            break;
+        }
+        inlier = next;
+        plane = fit_plane(candidates, &inlier)?;
+    }
+    Some((plane, inlier))
 }
 
 /// Per terrain cell (those in `residual_m`, the lowest returns' heights
