@@ -230,68 +230,25 @@ impl ChainCode {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
         let form = match kind {
-            KIND_SPLIT => Some(Form::Kind2),
-            KIND_SPLIT_3 if bytes[MAGIC.len()] >= VERSION => Some(Form::Kind3),
+            KIND_SPLIT => Form::Kind2,
+            KIND_SPLIT_3 if bytes[MAGIC.len()] >= VERSION => Form::Kind3,
             KIND_SPLIT_3 => return Err(ChainError::Malformed("kind 3 in a version 1 stream")),
-            _ => None,
+            KIND_INTERPOLATIVE => return decompress_kind1(&mut cur, header, n_symbols, n_nodes),
+            _ => {
+                return Err(ChainError::Malformed(
+                    "not a compressed chain code; use from_bytes",
+                ));
+            }
         };
-        if let Some(form) = form {
-            // The payload reader has checked the symbols' grammar and the
-            // radius count (`lod::scan`), and `read_header` the header: the
-            // checks of `ChainCode::new`, not repeated here.
-            let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes, form)?;
-            return Ok(ChainCode {
-                header,
-                symbols,
-                radii_q,
-            });
-        }
-        if kind != KIND_INTERPOLATIVE {
-            return Err(ChainError::Malformed(
-                "not a compressed chain code; use from_bytes",
-            ));
-        }
-        let primary = usize::try_from(cur.varint()?)
-            .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
-        let code_last = cur.varint()?;
-        let mapping = match cur.u8()? {
-            0 => GapMapping::Offset(unzigzag(cur.varint()?)),
-            1 => GapMapping::Zigzag,
-            _ => return Err(ChainError::Malformed("unknown radius gap mapping")),
-        };
-        let max_gap = cur.varint()?;
-        let radius_last = cur.varint()?;
-        let bit_bytes = cur.rest();
-
-        let mut r = BitReader::new(bit_bytes);
-        let code_sums = interpolative::decode_from(&mut r, n_symbols, code_last, MAX_SYMBOL_GAP)
-            .ok_or(ChainError::Malformed(
-                "symbol sums inconsistent with their count",
-            ))?;
-        let indices: Vec<u8> = differences(&code_sums).map(|g| g as u8).collect();
-        let last = mtf::mtf_inverse(&indices, ALPHABET)
-            .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
-        let symbols = bwt::bwt_inverse(&last, primary, ALPHABET).ok_or(ChainError::Malformed(
-            "BWT key does not invert the transform",
-        ))?;
-        let scan = lod::scan(&symbols, n_nodes)?;
-
-        let radius_sums = interpolative::decode_from(&mut r, n_nodes, radius_last, max_gap).ok_or(
-            ChainError::Malformed("radius sums inconsistent with their count"),
-        )?;
-        if r.overrun() {
-            return Err(ChainError::Truncated);
-        }
-        if r.bytes_consumed() != bit_bytes.len() {
-            return Err(ChainError::Malformed("bytes after the compressed stream"));
-        }
-        let gaps = differences(&radius_sums)
-            .map(|u| mapping.invert(u))
-            .collect::<Option<Vec<i64>>>()
-            .ok_or(ChainError::Malformed("radius gap out of range"))?;
-        let radii_q = radii_from_gaps(&gaps, &scan.branch_lengths())
-            .ok_or(ChainError::Malformed("radius out of range"))?;
-        ChainCode::new(header, symbols, radii_q)
+        // The payload reader has checked the symbols' grammar and the
+        // radius count (`lod::scan`), and `read_header` the header: the
+        // checks of `ChainCode::new`, not repeated here.
+        let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes, form)?;
+        Ok(ChainCode {
+            header,
+            symbols,
+            radii_q,
+        })
     }
 
     fn header_bytes(&self, kind: u8) -> Vec<u8> {
@@ -353,6 +310,65 @@ pub struct CompressedSizes {
 /// True if `bytes` start like a chain code stream of either kind.
 pub fn is_chain_code(bytes: &[u8]) -> bool {
     bytes.starts_with(MAGIC)
+}
+
+/// The payload of kind 1 (one interpolative code of the BWT/MTF symbol
+/// string, then one of the radius gaps) after its header.
+fn decompress_kind1(
+    cur: &mut ByteCursor<'_>,
+    header: ChainHeader,
+    n_symbols: usize,
+    n_nodes: usize,
+) -> Result<ChainCode, ChainError> {
+    let primary = usize::try_from(cur.varint()?)
+        .map_err(|_| ChainError::Malformed("BWT key out of range"))?;
+    let code_last = cur.varint()?;
+    let mapping = match cur.u8()? {
+        0 => GapMapping::Offset(unzigzag(cur.varint()?)),
+        1 => GapMapping::Zigzag,
+        _ => return Err(ChainError::Malformed("unknown radius gap mapping")),
+    };
+    let max_gap = cur.varint()?;
+    let radius_last = cur.varint()?;
+    let bit_bytes = cur.rest();
+    let mut r = BitReader::new(bit_bytes);
+    let symbols = kind1_symbols(&mut r, n_symbols, code_last, primary)?;
+    let scan = lod::scan(&symbols, n_nodes)?;
+    let radius_sums = interpolative::decode_from(&mut r, n_nodes, radius_last, max_gap).ok_or(
+        ChainError::Malformed("radius sums inconsistent with their count"),
+    )?;
+    if r.overrun() {
+        return Err(ChainError::Truncated);
+    }
+    if r.bytes_consumed() != bit_bytes.len() {
+        return Err(ChainError::Malformed("bytes after the compressed stream"));
+    }
+    let gaps = differences(&radius_sums)
+        .map(|u| mapping.invert(u))
+        .collect::<Option<Vec<i64>>>()
+        .ok_or(ChainError::Malformed("radius gap out of range"))?;
+    let radii_q = radii_from_gaps(&gaps, &scan.branch_lengths())
+        .ok_or(ChainError::Malformed("radius out of range"))?;
+    ChainCode::new(header, symbols, radii_q)
+}
+
+/// Kind 1's symbols: the interpolative code of the cumulative MTF indices,
+/// then inverse MTF and inverse BWT with key `primary`.
+fn kind1_symbols(
+    r: &mut BitReader<'_>,
+    n_symbols: usize,
+    code_last: u64,
+    primary: usize,
+) -> Result<Vec<u8>, ChainError> {
+    let code_sums = interpolative::decode_from(r, n_symbols, code_last, MAX_SYMBOL_GAP).ok_or(
+        ChainError::Malformed("symbol sums inconsistent with their count"),
+    )?;
+    let indices: Vec<u8> = differences(&code_sums).map(|g| g as u8).collect();
+    let last = mtf::mtf_inverse(&indices, ALPHABET)
+        .ok_or(ChainError::Malformed("move-to-front index out of range"))?;
+    bwt::bwt_inverse(&last, primary, ALPHABET).ok_or(ChainError::Malformed(
+        "BWT key does not invert the transform",
+    ))
 }
 
 /// Parses and checks the common header: `(header, kind, symbols, nodes)`.
