@@ -2,20 +2,13 @@
 //! every stored form decodes back within its stated bound, outputs are
 //! written in the requested formats, and hostile inputs fail with one line.
 
-use std::path::Path;
-use std::process::Command;
+mod cli_support;
 
 use glam::DVec3;
 use silva::synth::{Species, TreeParams, generate};
 use silva::{Anchor, Skeleton};
 
-fn silva(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_silva"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
+use cli_support::{Run, silva};
 
 fn truth() -> Skeleton {
     let anchor = Anchor {
@@ -39,35 +32,29 @@ fn encode_decode_export_round_trip() {
     let d = dir.path();
     let tree = truth().canonical();
     std::fs::write(d.join("s.json"), tree.to_json()).unwrap();
-    let out = silva(
-        &[
+    silva()
+        .current_dir(d)
+        .args([
             "encode",
             "s.json",
             "--lsystem",
             "l.json",
             "--chaincode",
             "c.bin",
-        ],
-        d,
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        ])
+        .succeeds();
 
-    let out = silva(&["decode", "l.json", "--skeleton", "from_ls.json"], d);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    silva()
+        .current_dir(d)
+        .args(["decode", "l.json", "--skeleton", "from_ls.json"])
+        .succeeds();
     let from_ls =
         Skeleton::from_json(&std::fs::read_to_string(d.join("from_ls.json")).unwrap()).unwrap();
     assert!(max_error_m(&tree, &from_ls) <= 0.001 + 1e-5);
 
-    let out = silva(
-        &[
+    silva()
+        .current_dir(d)
+        .args([
             "decode",
             "c.bin",
             "--skeleton",
@@ -76,21 +63,16 @@ fn encode_decode_export_round_trip() {
             "m.glb",
             "--lod",
             "1",
-        ],
-        d,
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        ])
+        .succeeds();
     let from_cc =
         Skeleton::from_json(&std::fs::read_to_string(d.join("from_cc.json")).unwrap()).unwrap();
     assert!(from_cc.internode_count() > 0);
     assert_eq!(&std::fs::read(d.join("m.glb")).unwrap()[..4], b"glTF");
 
-    let out = silva(
-        &[
+    silva()
+        .current_dir(d)
+        .args([
             "export",
             "l.json",
             "--mesh",
@@ -101,14 +83,8 @@ fn encode_decode_export_round_trip() {
             "t.csv",
             "--skeleton",
             "t.ply",
-        ],
-        d,
-    );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        ])
+        .succeeds();
     let city: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("t.city.json")).unwrap()).unwrap();
     assert_eq!(city["type"], "CityJSON");
@@ -136,10 +112,9 @@ fn hostile_inputs_fail_with_one_line() {
     ];
     for (name, bytes) in cases {
         std::fs::write(d.join(name), bytes).unwrap();
-        let out = silva(&["decode", name, "--skeleton", "x.json"], d);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{name} accepted");
-        assert_eq!(stderr.trim_end().lines().count(), 1, "{name}: {stderr}");
-        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+        silva()
+            .current_dir(d)
+            .args(["decode", name, "--skeleton", "x.json"])
+            .fails_with_one_line();
     }
 }

@@ -3,8 +3,10 @@
 
 use std::io::Cursor;
 use std::path::PathBuf;
-use std::process::Command;
 
+mod cli_support;
+
+use cli_support::{Run, silva};
 use glam::{DVec3, Vec3};
 use silva::cloud::{
     CloudError, Format, Location, PointCloud, ReadOptions, detect, read_as, read_bytes, read_path,
@@ -458,17 +460,9 @@ fn laz_bytes_are_smaller_than_las() {
     assert_eq!(read_bytes(&laz, &ReadOptions::default()).unwrap().0, source);
 }
 
-fn silva(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_silva"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
 #[test]
 fn silva_info_prints_json() {
-    let out = silva(&["info", data("tiny.laz").to_str().unwrap()]);
-    assert!(out.status.success());
+    let out = silva().arg("info").arg(data("tiny.laz")).succeeds();
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["format"], "laz");
     assert_eq!(json["points"], 40);
@@ -493,12 +487,6 @@ fn silva_info_on_broken_files_fails_with_one_line() {
         "broken_inf.ply",
         "does_not_exist.xyz",
     ] {
-        let out = silva(&["info", data(name).to_str().unwrap()]);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{name}");
-        assert_eq!(stderr.lines().count(), 1, "{name}: {stderr}");
-        assert!(stderr.starts_with("silva: "), "{name}: {stderr}");
-        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
-        assert!(out.stdout.is_empty(), "{name}");
+        silva().arg("info").arg(data(name)).fails_with_one_line();
     }
 }

@@ -1,25 +1,20 @@
 //! `silva eval` end to end: the report's per-tree target tallies and
 //! summary medians agree with its rows.
 
-use std::process::Command;
+mod cli_support;
 
+use cli_support::{Run, silva};
 use serde_json::Value;
 
 #[test]
 fn airborne_report_counts_the_trees_that_meet_each_target() {
     let dir = tempfile::tempdir().unwrap();
     let report = dir.path().join("report.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_silva"))
+    let out = silva()
         .args(["eval", "--synthetic", "2", "--scan", "als", "--repeat", "1"])
         .arg("--report")
         .arg(&report)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .succeeds();
     let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let truths: Vec<&Value> = json["trees"]
         .as_array()

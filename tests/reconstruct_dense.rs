@@ -1,6 +1,9 @@
 //! The dense pipeline on synthetic scans with a known skeleton: a Y-shaped
 //! tree sampled on its bark with noise, and the bad inputs of issue 3.
 
+mod cli_support;
+
+use cli_support::{Run, silva};
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -298,17 +301,15 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
     silva::cloud::write_path(&cloud, &cloud_path).unwrap();
     let ply = dir.path().join("skeleton.ply");
     let metrics = dir.path().join("metrics.json");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_silva"))
+    let out = silva()
         .arg("reconstruct")
         .arg(&cloud_path)
         .args(["--mode", "dense", "--skeleton"])
         .arg(&ply)
         .arg("--metrics")
         .arg(&metrics)
-        .output()
-        .unwrap();
+        .succeeds();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("mode dense"), "{stderr}");
     let bytes = std::fs::read(&ply).unwrap();
     let end = bytes

@@ -1,6 +1,6 @@
 //! `silva synth` end to end: the true skeleton written, read back and compared.
 
-use std::process::Command;
+mod cli_support;
 
 use glam::DVec3;
 use silva::cloud::{ReadOptions, read_path};
@@ -10,9 +10,7 @@ use silva::synth::{
 };
 use silva::{Anchor, Skeleton};
 
-fn silva() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_silva"))
-}
+use cli_support::{Run, silva};
 
 #[test]
 fn truth_written_by_the_cli_reads_back_as_the_generated_tree() {
@@ -30,13 +28,7 @@ fn truth_written_by_the_cli_reads_back_as_the_generated_tree() {
         ])
         .args(["--anchor", "85000,446000,0.5", "--truth"])
         .arg(&truth)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .succeeds();
     let back = Skeleton::from_json(&std::fs::read_to_string(&truth).unwrap()).unwrap();
     let anchor = Anchor {
         origin: DVec3::new(85_000.0, 446_000.0, 0.5),
@@ -64,13 +56,7 @@ fn als_summary_reports_the_requested_density() {
             "--density",
             "20",
         ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .succeeds();
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let density = summary["density_pts_per_m2"].as_f64().unwrap();
     assert!((16.0..=24.0).contains(&density), "{density}");
@@ -88,17 +74,11 @@ fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
         ("tls", "tree.xyz"),
     ] {
         let path = dir.path().join(file);
-        let out = silva()
+        silva()
             .args(["synth", "--species", "birch", "--seed", "3", "--scan", scan])
             .args(["--anchor", "85000,446000,0", "-o"])
             .arg(&path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+            .succeeds();
         let expected = if scan == "als" {
             // The CLI's default: a leaf-off deciduous crown, as AHN.
             let opts = AlsOptions {
@@ -130,12 +110,6 @@ fn bad_arguments_fail_with_one_line() {
         vec!["synth", "--truth", "t.json", "-o", "cloud.laz"],
         vec!["synth", "--scan", "als", "-o", "cloud.e57"],
     ] {
-        let out = silva().args(&args).output().unwrap();
-        assert!(!out.status.success(), "{args:?}");
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            err.starts_with("silva: ") && err.trim().lines().count() == 1,
-            "{err}"
-        );
+        silva().args(&args).fails_with_one_line();
     }
 }
