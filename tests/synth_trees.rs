@@ -467,3 +467,36 @@ fn leaf_off_scans_see_the_limbs_of_deciduous_trees_and_conifers_keep_needles() {
     );
     assert_eq!(on, off, "a pine keeps its needles");
 }
+
+#[test]
+fn twigs_stop_at_the_bark_of_the_stem() {
+    // No lateral passes into the trunk's wood from outside it (Weber & Penn's
+    // productions would let a twig bent towards the trunk grow through it).
+    for species in Species::ALL {
+        for seed in 1..=4 {
+            let t = tree(species, seed);
+            let orders = t.branch_orders();
+            let stem: Vec<(NodeId, NodeId)> = t
+                .internodes()
+                .filter(|&(_, c)| orders[c.index()] == 0)
+                .collect();
+            let in_stem = |id: NodeId| {
+                let p = t.position(id);
+                stem.iter().any(|&(a, b)| {
+                    let (pa, pb) = (t.position(a), t.position(b));
+                    let f = ((p - pa).dot(pb - pa) / pa.distance_squared(pb)).clamp(0.0, 1.0);
+                    let r = t.radius(a) + f * (t.radius(b) - t.radius(a));
+                    pa.lerp(pb, f).distance(p) < r
+                })
+            };
+            for (parent, child) in t.internodes() {
+                if orders[child.index()] > 0 && orders[parent.index()] > 0 {
+                    assert!(
+                        !in_stem(child) || in_stem(parent),
+                        "{species} seed {seed}: node {child:?} enters the stem"
+                    );
+                }
+            }
+        }
+    }
+}

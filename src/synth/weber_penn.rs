@@ -24,7 +24,8 @@
 //!   A dichotomous split divides the cross-section between the two forks.
 //! - Children are placed per internode by error diffusion (paper §3.2.1), in
 //!   alternate or whorled arrangement, at cumulative `rotate` azimuths.
-//! - Branches stop where they would reach the ground (pruning, §4.6).
+//! - Branches stop where they would reach the ground (pruning, §4.6), and a
+//!   twig stops where it would enter the stem ([`stop_at_the_stem`]).
 //! - `attraction_up` bends level ≥ 2 stems towards (or, if negative, away
 //!   from) the light, the vertical tropism of the paper's §3.2.1.
 //!
@@ -277,6 +278,7 @@ pub fn generate(params: &TreeParams, seed: u64, anchor: Anchor) -> Skeleton {
         params: &params,
         rng,
         skeleton,
+        on_stem: vec![true],
     };
     let trunk = Stem {
         level: 0,
@@ -295,9 +297,69 @@ pub fn generate(params: &TreeParams, seed: u64, anchor: Anchor) -> Skeleton {
     while let Some(stem) = pending.pop() {
         grower.grow(stem, &mut pending);
     }
-    let mut skeleton = grower.skeleton;
+    let mut skeleton = stop_at_the_stem(&grower.skeleton, &grower.on_stem);
     skeleton.order_main_extension_first();
     skeleton.canonical()
+}
+
+/// The tree with every lateral cut where it enters the stem's wood.
+///
+/// Weber & Penn's productions do not see other stems, so a twig on a low limb
+/// can be bent into the trunk and out through its far side; a real one cannot.
+/// A node off the stem (levels ≥ 1) whose centre lies inside the stem while its
+/// parent's does not is dropped with its subtree: the twig ends at the bark.
+/// A lateral's own base, which starts on the stem's axis, is kept. Done after
+/// growth, so the random stream, and with it every other stem, is unchanged.
+/// `on_stem[i]` says whether node `i` (in growth order, parents first) is on
+/// the level-0 stem.
+fn stop_at_the_stem(tree: &Skeleton, on_stem: &[bool]) -> Skeleton {
+    let stem: Vec<(NodeId, NodeId)> = tree
+        .internodes()
+        .filter(|&(p, c)| on_stem[p.index()] && on_stem[c.index()])
+        .collect();
+    let wood = stem_bounds(tree, &stem);
+    let inside: Vec<bool> = tree
+        .ids()
+        .map(|id| {
+            let p = tree.position(id);
+            !on_stem[id.index()]
+                && p.cmpge(wood.0).all()
+                && p.cmple(wood.1).all()
+                && in_the_wood(tree, &stem, p)
+        })
+        .collect();
+    let mut keep = vec![true; tree.len()];
+    for id in tree.ids().skip(1) {
+        let parent = tree.parent(id).expect("only the root has no parent");
+        let enters = inside[id.index()] && !inside[parent.index()] && !on_stem[parent.index()];
+        keep[id.index()] = keep[parent.index()] && !enters;
+    }
+    if keep.iter().all(|&k| k) {
+        return tree.clone();
+    }
+    tree.retain(&keep)
+}
+
+/// Bounds of the `internodes`' cylinders: their nodes' bounds grown by the
+/// largest radius (a quick test before [`in_the_wood`]).
+fn stem_bounds(tree: &Skeleton, internodes: &[(NodeId, NodeId)]) -> (Vec3, Vec3) {
+    let nodes = || internodes.iter().flat_map(|&(a, b)| [a, b]);
+    let reach = Vec3::splat(nodes().map(|n| tree.radius(n)).fold(0.0, f32::max));
+    let lo = nodes().map(|n| tree.position(n)).fold(Vec3::MAX, Vec3::min);
+    let hi = nodes().map(|n| tree.position(n)).fold(Vec3::MIN, Vec3::max);
+    (lo - reach, hi + reach)
+}
+
+/// Whether `p` lies within one of the `internodes`' cylinders, its radius
+/// interpolated between the two nodes' radii.
+fn in_the_wood(tree: &Skeleton, internodes: &[(NodeId, NodeId)], p: Vec3) -> bool {
+    internodes.iter().any(|&(a, b)| {
+        let (pa, pb) = (tree.position(a), tree.position(b));
+        let ab = pb - pa;
+        let t = ((p - pa).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+        let radius = tree.radius(a) + t * (tree.radius(b) - tree.radius(a));
+        (pa + t * ab).distance(p) < radius
+    })
 }
 
 /// One stem (or the part of it beyond a dichotomous split) to be grown.
@@ -334,6 +396,8 @@ struct Grower<'a> {
     params: &'a TreeParams,
     rng: ChaCha8Rng,
     skeleton: Skeleton,
+    /// Per node, in growth order: whether it is on the level-0 stem.
+    on_stem: Vec<bool>,
 }
 
 impl Grower<'_> {
@@ -369,6 +433,7 @@ impl Grower<'_> {
                 .radius_at(&stem, offset)
                 .min(self.skeleton.radius(node));
             node = self.skeleton.add_child(node, position, radius);
+            self.on_stem.push(stem.level == 0);
             if self.skeleton.len() >= MAX_NODES {
                 return;
             }
@@ -598,5 +663,51 @@ fn orthonormal(v: Vec3, dir: Vec3) -> Vec3 {
         p / len
     } else {
         any_perpendicular(dir)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_twig_bent_into_the_stem_ends_at_its_bark() {
+        // A vertical stem of radius 0.3 m, a limb leaving it to +x, and on
+        // the limb a twig turned back through the stem and out its far side.
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        let node = |tree: &mut Skeleton, parent: usize, p: [f32; 3], r: f32| {
+            tree.add_child(NodeId::from_index(parent), Vec3::from(p), r)
+                .index()
+        };
+        let base = node(&mut tree, 0, [0.0, 0.0, 2.0], 0.3);
+        node(&mut tree, base, [0.0, 0.0, 4.0], 0.3);
+        let limb = node(&mut tree, base, [0.2, 0.0, 2.05], 0.05);
+        let limb = node(&mut tree, limb, [1.0, 0.0, 2.2], 0.04);
+        node(&mut tree, limb, [2.0, 0.0, 2.5], 0.03);
+        let twig = node(&mut tree, limb, [0.5, 0.0, 2.3], 0.01);
+        let twig = node(&mut tree, twig, [0.1, 0.0, 2.4], 0.01);
+        node(&mut tree, twig, [-0.5, 0.0, 2.5], 0.01);
+        let on_stem = [true, true, true, false, false, false, false, false, false];
+
+        let cut = stop_at_the_stem(&tree, &on_stem);
+
+        // The limb's base inside the stem stays; the twig keeps its node
+        // outside the bark and loses the two from the bark on.
+        assert_eq!(cut.len(), 7);
+        let kept: Vec<Vec3> = cut.nodes().iter().map(|n| n.position).collect();
+        assert!(kept.contains(&Vec3::new(0.2, 0.0, 2.05)));
+        assert!(kept.contains(&Vec3::new(0.5, 0.0, 2.3)));
+        assert!(!kept.contains(&Vec3::new(-0.5, 0.0, 2.5)));
+    }
+
+    #[test]
+    fn a_tree_whose_twigs_stay_outside_the_stem_is_unchanged() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.3);
+        let top = tree.add_child(NodeId::ROOT, Vec3::Z * 3.0, 0.25);
+        let limb = tree.add_child(NodeId::ROOT, Vec3::new(0.5, 0.0, 1.0), 0.1);
+        tree.add_child(limb, Vec3::new(1.0, 0.5, 1.5), 0.05);
+        tree.add_child(top, Vec3::Z * 5.0, 0.2);
+        let cut = stop_at_the_stem(&tree, &[true, true, false, false, true]);
+        assert_eq!(cut.to_json(), tree.to_json());
     }
 }
