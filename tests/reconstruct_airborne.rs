@@ -207,9 +207,10 @@ fn leaf_off_pines_keep_their_leader() {
 /// Leaf-on scans of Lombardy poplars (summer surveys): the leaves hide the
 /// stem, so mostly no return marks it, and the crown footprint's centre
 /// (Eq. 4) was 0.64–0.86 m off on seeds 7 and 19; the centre of the columnar
-/// crown's lowest layer puts the base a median 0.35 m off over seeds 1–20,
+/// crown's lowest layer puts the base a median 0.34 m off over seeds 1–20,
 /// 16 of them within the 0.5 m and the other four at 0.50–0.57 m
-/// (measured with the generator that stops twigs at the stem's bark).
+/// (measured with the generator that stops twigs at the stem's bark and the
+/// 0.8 m stem column, which places poplar 6 on its one pair of stem hits).
 #[test]
 fn leaf_on_columnar_crowns_put_the_trunk_base_under_their_lowest_layer() {
     let opts = AlsOptions {

@@ -343,10 +343,18 @@ fn rising_trunk(root: Vec3, low: Vec3, crown_base: f32, v_c: Vec3, spacing: f32)
 /// limbs.
 const STEM_BAND_M: (f32, f32) = (0.3, 2.5);
 
-/// Horizontal radius of a stem column, in metres: returns lie on the bark
-/// all round a trunk up to 0.8 m thick at its flared base, plus the
-/// scanner's noise (0.35 m split a poplar's three stem returns).
-const STEM_COLUMN_RADIUS_M: f32 = 0.5;
+/// Horizontal radius of a stem column around one of its returns, in metres:
+/// returns lie on the bark all round a trunk, so the far side of a trunk up
+/// to 0.8 m thick at its flared base is this far from a return on its near
+/// side. (At 0.5 m, a poplar's two stem returns 0.63 m apart on opposite
+/// sides of its trunk made no column, and the base fell back to Eq. 3 or 4.)
+const STEM_COLUMN_RADIUS_M: f32 = 0.8;
+
+/// Core radius of a stem column's isolation test, in metres: the returns
+/// within it must outnumber those in the ring [`STEM_RING_M`] (see
+/// [`stem_column`]). Tighter than the column, so that a low limb's spread of
+/// returns does not pass for a thick stem.
+const STEM_CORE_RADIUS_M: f32 = 0.5;
 
 /// The ring around a candidate stem column whose band returns count
 /// against it, inner and outer radius in metres (see [`stem_column`]). The
@@ -356,7 +364,7 @@ const STEM_RING_M: (f32, f32) = (0.8, 2.5);
 
 /// The horizontal position of the stem, from the returns in the stem band
 /// (0.3–2.5 m above the ground): the mean position of the best-isolated
-/// group of at least two band returns within [`STEM_COLUMN_RADIUS_M`] of
+/// column of at least two band returns within [`STEM_COLUMN_RADIUS_M`] of
 /// one of them, if it lies within §4.2's λ2 ≤ 0.5 of the footprint centre.
 /// Not in the paper, whose v_low is the lowest return: when ground returns
 /// are in the clip the lowest tree return is as often ground noise or a limb
@@ -369,11 +377,14 @@ const STEM_RING_M: (f32, f32) = (0.8, 2.5);
 /// arcs down into it continue along the limb. On 600 synthetic AHN-like
 /// trees (`silva eval --synthetic 20 --scan als --seed S`, S = 1, 21, …,
 /// 581) the largest group was a limb 5–7 m from the stem on six oaks: its
-/// disk held 3–8 returns, the stem's 1–4, but returns continued in the
-/// ring [`STEM_RING_M`] around the limb's group, where the stems' groups
-/// had none or one. So a group needs more returns in its disk than in its
-/// ring, and the groups rank by returns in the disk per return in the ring
-/// (plus one).
+/// 0.5 m disk held 3–8 returns, the stem's 1–4, but returns continued in
+/// the ring [`STEM_RING_M`] around the limb's group, where the stems' groups
+/// had none or one. So a group needs more returns in its core
+/// ([`STEM_CORE_RADIUS_M`]) than in its ring, and the groups rank by returns
+/// in the core per return in the ring (plus one). The column, whose mean
+/// places the base, is wider than the core to gather both sides of a thick
+/// stem; counted in the column, a limb's spread of returns 6 m from an
+/// oak's stem passed the isolation test too.
 fn stem_column(
     tree: &[Vec3],
     terrain: &Terrain,
@@ -395,17 +406,19 @@ fn stem_column(
         .filter(|c| c.distance(centre_xy) <= LONE_HIT_LAMBDA2_MAX * half_diagonal)
         .map(|&c| {
             let group: Vec<Vec2> = within(c, STEM_COLUMN_RADIUS_M).collect();
+            let core = count_within(c, STEM_CORE_RADIUS_M);
             let ring = count_within(c, STEM_RING_M.1) - count_within(c, STEM_RING_M.0);
-            (group, ring)
+            (group, core, ring)
         })
-        .filter(|(group, ring)| group.len() >= 2 && *ring < group.len())
-        .max_by(|(a, ring_a), (b, ring_b)| {
+        .filter(|(group, core, ring)| group.len() >= 2 && ring < core)
+        .max_by(|(a, core_a, ring_a), (b, core_b, ring_b)| {
             let isolation = |n: usize, ring: usize| n as f32 / (ring + 1) as f32;
-            isolation(a.len(), *ring_a)
-                .total_cmp(&isolation(b.len(), *ring_b))
+            isolation(*core_a, *ring_a)
+                .total_cmp(&isolation(*core_b, *ring_b))
+                .then(core_a.cmp(core_b))
                 .then(a.len().cmp(&b.len()))
         })
-        .map(|(group, _)| group)?;
+        .map(|(group, _, _)| group)?;
     Some(best.iter().copied().sum::<Vec2>() / best.len() as f32)
 }
 
@@ -617,25 +630,47 @@ mod tests {
         assert_ne!(terrain_free.rule, TrunkRule::OnStemReturns);
     }
 
+    /// 200 crown returns on a cylinder of `radius` from `base_z` up, in
+    /// `layers` layers 0.5 m apart.
+    fn crown_ring(radius: f32, base_z: f32, layers: usize) -> Vec<Vec3> {
+        (0..200)
+            .map(|k| {
+                let a = k as f32 * 0.7;
+                let z = base_z + (k % layers) as f32 * 0.5;
+                Vec3::new(radius * a.cos(), radius * a.sin(), z)
+            })
+            .collect()
+    }
+
+    /// Flat ground at z = 0, 20 m across.
+    fn flat_terrain() -> Terrain {
+        let ground: Vec<Vec3> = (-25..=25)
+            .flat_map(|i| (-25..=25).map(move |j| Vec3::new(i as f32 * 0.4, j as f32 * 0.4, 0.0)))
+            .collect();
+        fit_terrain(&ground).expect("flat ground")
+    }
+
+    #[test]
+    fn returns_on_opposite_sides_of_a_thick_stem_make_one_column() {
+        // A poplar-like stem 0.64 m thick at 0.5 m, hit once on each side
+        // (0.63 m apart), under a crown from 3 m; nothing else in the band.
+        let mut tree = crown_ring(1.5, 3.0, 9);
+        tree.extend([Vec3::new(-0.14, 0.31, 0.50), Vec3::new(0.31, -0.16, 0.54)]);
+        let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
+        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
+        let base = trunk.points[0].truncate();
+        assert!(base.length() < 0.15, "base at {base}, not between the hits");
+    }
+
     #[test]
     fn a_low_limb_in_the_stem_band_does_not_outvote_a_lone_stem() {
         // A broad crown 8 m in radius whose stem shows two returns, and a
         // limb that arcs down into the stem band 4.5 m out: nine returns in
         // a line along it, five of them in any 0.5 m disk.
-        let mut tree: Vec<Vec3> = (0..200)
-            .map(|k| {
-                let a = k as f32 * 0.7;
-                let z = 6.0 + (k % 7) as f32 * 0.5;
-                Vec3::new(8.0 * a.cos(), 8.0 * a.sin(), z)
-            })
-            .collect();
+        let mut tree = crown_ring(8.0, 6.0, 7);
         tree.extend([Vec3::new(0.1, 0.0, 0.8), Vec3::new(-0.1, 0.1, 1.9)]);
         tree.extend((0..9).map(|i| Vec3::new(4.5, -1.0 + 0.25 * i as f32, 2.0)));
-        let ground: Vec<Vec3> = (-25..=25)
-            .flat_map(|i| (-25..=25).map(move |j| Vec3::new(i as f32 * 0.4, j as f32 * 0.4, 0.0)))
-            .collect();
-        let terrain = fit_terrain(&ground).expect("flat ground");
-        let trunk = add_trunk(&tree, Some(&terrain), &Params::default());
+        let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
         assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
         let base = trunk.points[0].truncate();
         assert!(base.length() < 0.2, "base at {base}, not on the stem");
