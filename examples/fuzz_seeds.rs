@@ -3,8 +3,9 @@
 //! `cargo run --example fuzz_seeds -- fuzz/corpus`.
 //!
 //! Per skeleton: the plain chain code (`chaincode/`), both compressed kinds
-//! (`chaincode_stream/`), LsJSON with and without tip rules (`lsjson/`), and
-//! one of each stored form for the content sniffing (`decode_stored/`).
+//! (`chaincode_stream/`), LsJSON with and without tip rules (`lsjson/`), the
+//! skeleton PLY as silva and as AdTree write it (`skeleton_ply/`), and one of
+//! each file form for the content sniffing (`decode_stored/`).
 //! And small synthetic scans for the whole reconstruction (`reconstruct/`,
 //! in that target's input form: a pipeline byte, then `i16` millimetres).
 
@@ -117,6 +118,15 @@ fn main() {
             &format!("{name}.skeleton.json"),
             tree.to_json().as_bytes(),
         );
+        let ply = tree.to_ply();
+        let adtree = adtree_ply(tree);
+        write(&stored, &format!("{name}.ply"), &ply);
+        write(&root.join("skeleton_ply"), &format!("{name}.ply"), &ply);
+        write(
+            &root.join("skeleton_ply"),
+            &format!("{name}-adtree.ply"),
+            adtree.as_bytes(),
+        );
         let sizes = [plain.len(), split.len(), ls.len(), ls_rules.len()];
         println!(
             "{name}: {} nodes, plain/compressed/lsjson/lsjson-rules bytes {sizes:?}",
@@ -131,7 +141,30 @@ fn main() {
         let code = chaincode::encode(tree, &ChainOptions::default()).expect("encodable");
         let back = ChainCode::decompress(&code.compress(), &chaincode::Limits::default());
         assert_eq!(back.as_ref(), Ok(&code));
+        assert!(Skeleton::from_ply(&tree.to_ply()).is_ok());
+        assert!(Skeleton::from_ply(adtree_ply(tree).as_bytes()).is_ok());
     }
+}
+
+/// `tree` as the augmented AdTree writes a skeleton (lsystem-from-adtree-
+/// skeletons, Fig. 3.11): ascii, `float x y z`, an empty face element, no
+/// radius, each edge child to parent.
+fn adtree_ply(tree: &Skeleton) -> String {
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nelement face 0\nproperty list uchar int vertex_index\n\
+         element edge {}\nproperty int vertex1\nproperty int vertex2\nend_header\n",
+        tree.len(),
+        tree.internode_count()
+    );
+    for id in tree.ids() {
+        let p = tree.absolute_position(id);
+        ply += &format!("{:.4} {:.4} {:.4}\n", p.x, p.y, p.z);
+    }
+    for (parent, child) in tree.internodes() {
+        ply += &format!("{} {}\n", child.index(), parent.index());
+    }
+    ply
 }
 
 /// Synthetic scans as inputs of the `reconstruct` target: a byte for the

@@ -8,7 +8,7 @@ use crate::cloud::CloudError;
 use crate::encode::chaincode::ChainError;
 use crate::encode::lsystem::LsError;
 use crate::reconstruct::ReconstructError;
-use crate::skeleton::{SkeletonError, SkeletonJsonError};
+use crate::skeleton::{SkeletonError, SkeletonJsonError, SkeletonPlyError};
 
 /// Any error silva's library returns.
 #[derive(Debug, thiserror::Error)]
@@ -22,6 +22,9 @@ pub enum Error {
     /// A skeleton JSON document was rejected.
     #[error(transparent)]
     SkeletonJson(#[from] SkeletonJsonError),
+    /// A skeleton PLY file was rejected.
+    #[error(transparent)]
+    SkeletonPly(#[from] SkeletonPlyError),
     /// No skeleton could be reconstructed from a cloud.
     #[error(transparent)]
     Reconstruct(#[from] ReconstructError),

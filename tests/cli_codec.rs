@@ -1,6 +1,7 @@
 //! `silva encode`, `decode` and `export` end to end on a synthetic tree:
 //! every stored form decodes back within its stated bound, outputs are
-//! written in the requested formats, and hostile inputs fail with one line.
+//! written in the requested formats, a skeleton PLY (silva's or AdTree's)
+//! is read like the skeleton JSON, and hostile inputs fail with one line.
 
 mod cli_support;
 
@@ -101,8 +102,13 @@ fn encode_decode_export_round_trip() {
 fn hostile_inputs_fail_with_one_line() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let cases: [(&str, &[u8]); 4] = [
+    let cases: [(&str, &[u8]); 5] = [
         ("garbage.json", b"not json at all"),
+        (
+            "points.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+              property float z\nend_header\n0 0 0\n1 1 1\n",
+        ),
         ("trunc.bin", b"SLVC\x01\x01\xff\xff"),
         (
             "bomb.json",
@@ -117,4 +123,56 @@ fn hostile_inputs_fail_with_one_line() {
             .args(["decode", name, "--skeleton", "x.json"])
             .fails_with_one_line();
     }
+}
+
+#[test]
+fn a_skeleton_ply_encodes_as_its_json_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.json"), truth().canonical().to_json()).unwrap();
+    silva()
+        .current_dir(d)
+        .args(["export", "s.json", "--skeleton", "s.ply"])
+        .succeeds();
+    for input in ["s.json", "s.ply"] {
+        silva()
+            .current_dir(d)
+            .args(["encode", input, "--lsystem"])
+            .arg(format!("{input}.ls.json"))
+            .arg("--chaincode")
+            .arg(format!("{input}.bin"))
+            .succeeds();
+    }
+    let read = |name: &str| std::fs::read(d.join(name)).unwrap();
+    assert_eq!(read("s.ply.ls.json"), read("s.json.ls.json"));
+    assert_eq!(read("s.ply.bin"), read("s.json.bin"));
+}
+
+#[test]
+fn an_adtree_skeleton_ply_is_encoded_with_a_note_on_its_missing_radii() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // lsystem-from-adtree-skeletons, Fig. 3.11: ascii, no radius, edges
+    // child to parent.
+    let adtree = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                  property float y\nproperty float z\nelement face 0\n\
+                  property list uchar int vertex_index\nelement edge 2\n\
+                  property int vertex1\nproperty int vertex2\nend_header\n\
+                  127395.5 401149.75 16.5\n127395.5 401149.75 13.0\n\
+                  127396.0 401149.75 14.5\n0 2\n2 1\n";
+    std::fs::write(d.join("adtree.ply"), adtree).unwrap();
+    let out = silva()
+        .current_dir(d)
+        .args(["encode", "adtree.ply", "--lsystem", "l.json"])
+        .succeeds();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("every radius is 0"), "{stderr}");
+    silva()
+        .current_dir(d)
+        .args(["decode", "l.json", "--skeleton", "back.json"])
+        .succeeds();
+    let back = Skeleton::from_json(&std::fs::read_to_string(d.join("back.json")).unwrap()).unwrap();
+    assert_eq!(back.len(), 3);
+    let base = back.absolute_position(silva::NodeId::ROOT);
+    assert!((base - DVec3::new(127_395.5, 401_149.75, 13.0)).length() < 1e-3);
 }

@@ -7,7 +7,7 @@ mod mesh_support;
 use std::collections::HashMap;
 
 use glam::{DVec3, Vec3};
-use mesh_support::random_tree;
+use mesh_support::{random_tree, split_ply};
 use silva::mesh::{self, Lod, Mesh, MeshFormat};
 use silva::synth::{Species, TreeParams, generate};
 use silva::{Anchor, NodeId, Skeleton};
@@ -323,18 +323,6 @@ fn obj_lists_every_vertex_normal_and_face() {
 }
 
 /// Splits a PLY file into header text and binary body.
-fn split_ply(bytes: &[u8]) -> (String, &[u8]) {
-    let end = bytes
-        .windows(11)
-        .position(|w| w == b"end_header\n")
-        .expect("PLY header")
-        + 11;
-    (
-        String::from_utf8(bytes[..end].to_vec()).unwrap(),
-        &bytes[end..],
-    )
-}
-
 #[test]
 fn mesh_ply_is_binary_with_declared_sizes() {
     let tree = random_tree(6, 300);
@@ -347,30 +335,6 @@ fn mesh_ply_is_binary_with_declared_sizes() {
     assert_eq!(body.len(), m.vertex_count() * 36 + m.triangle_count() * 13);
     let x = f64::from_le_bytes(body[..8].try_into().unwrap());
     assert!((x - f64::from(m.positions[0].x)).abs() < 1e-9);
-}
-
-#[test]
-fn skeleton_ply_round_trips_nodes_radii_and_edges() {
-    let tree = random_tree(8, 200);
-    let bytes = mesh::skeleton_ply(&tree);
-    let (header, body) = split_ply(&bytes);
-    assert!(header.contains(&format!("element vertex {}\n", tree.len())));
-    assert!(header.contains("property float radius\n"));
-    assert!(header.contains(&format!("element edge {}\n", tree.internode_count())));
-    assert_eq!(body.len(), tree.len() * 28 + tree.internode_count() * 8);
-    for id in tree.ids() {
-        let at = id.index() * 28;
-        let x = f64::from_le_bytes(body[at..at + 8].try_into().unwrap());
-        let r = f32::from_le_bytes(body[at + 24..at + 28].try_into().unwrap());
-        assert_eq!(x, tree.absolute_position(id).x);
-        assert_eq!(r, tree.radius(id));
-    }
-    let edges = &body[tree.len() * 28..];
-    for (k, (p, c)) in tree.internodes().enumerate() {
-        let read =
-            |o: usize| i32::from_le_bytes(edges[k * 8 + o..k * 8 + o + 4].try_into().unwrap());
-        assert_eq!((read(0), read(4)), (p.index() as i32, c.index() as i32));
-    }
 }
 
 #[test]

@@ -2,9 +2,10 @@
 //! its stored forms (LsJSON, DBF6 chain code) and its outputs.
 //!
 //! Inputs are recognised by content, never by name: a chain code starts with
-//! the `SLVC` magic, a silva skeleton JSON has `"format":"silva-skeleton"`,
-//! anything else is parsed as LsJSON (with the reader's expansion limits, so
-//! a hostile file cannot expand without bound).
+//! the `SLVC` magic, a skeleton PLY (silva's or AdTree's) with `ply`, a silva
+//! skeleton JSON has `"format":"silva-skeleton"`, anything else is parsed as
+//! LsJSON (with the reader's expansion limits, so a hostile file cannot
+//! expand without bound).
 
 use std::path::{Path, PathBuf};
 
@@ -18,7 +19,8 @@ use super::outputs::{Outputs, write};
 /// Arguments of `silva encode`.
 #[derive(Debug, clap::Args)]
 pub struct EncodeArgs {
-    /// Skeleton to encode (silva skeleton JSON, LsJSON or chain code).
+    /// Skeleton to encode (silva skeleton JSON or PLY, AdTree skeleton PLY,
+    /// LsJSON or chain code).
     input: PathBuf,
     /// Write the L-system (LsJSON) here.
     #[arg(long)]
@@ -37,7 +39,7 @@ pub struct EncodeArgs {
 /// Arguments of `silva decode`.
 #[derive(Debug, clap::Args)]
 pub struct DecodeArgs {
-    /// LsJSON or chain code (recognised by content).
+    /// LsJSON, chain code or skeleton PLY (recognised by content).
     input: PathBuf,
     #[command(flatten)]
     outputs: Outputs,
@@ -46,7 +48,7 @@ pub struct DecodeArgs {
 /// Arguments of `silva export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// Skeleton JSON, LsJSON or chain code (recognised by content).
+    /// Skeleton JSON or PLY, LsJSON or chain code (recognised by content).
     input: PathBuf,
     /// Species, recorded in CityJSON.
     #[arg(long)]
@@ -116,9 +118,19 @@ pub fn export(args: ExportArgs) -> anyhow::Result<()> {
         .write(&skeleton, args.species, serde_json::Map::new())
 }
 
-/// Reads a skeleton from any of its stored forms, recognised by content
-/// ([`silva::encode::decode_stored`]).
+/// Reads a skeleton from any of its file forms, recognised by content
+/// ([`silva::encode::decode_stored`]). A skeleton without radii (AdTree's
+/// PLY has none) is read, with a note that its meshes will have no volume.
 pub fn load_skeleton(path: &Path) -> anyhow::Result<Skeleton> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    silva::encode::decode_stored(&bytes).with_context(|| format!("{}", path.display()))
+    let skeleton =
+        silva::encode::decode_stored(&bytes).with_context(|| format!("{}", path.display()))?;
+    if skeleton.len() > 1 && skeleton.nodes().iter().all(|n| n.radius_m == 0.0) {
+        eprintln!(
+            "silva: note: {}: every radius is 0 (a skeleton PLY without a radius property, \
+             such as AdTree's), so meshes and CityJSON solids have no volume",
+            path.display()
+        );
+    }
+    Ok(skeleton)
 }

@@ -10,7 +10,7 @@ use anyhow::{Context, bail};
 use serde_json::{Map, Value};
 use silva::Skeleton;
 use silva::cityjson::{TreeInfo, city_json};
-use silva::mesh::{Lod, MeshFormat, build_mesh, cylinder_table_csv, skeleton_ply};
+use silva::mesh::{Lod, MeshFormat, build_mesh, cylinder_table_csv};
 
 /// Output flags common to the commands that produce a skeleton.
 #[derive(Debug, clap::Args)]
@@ -66,7 +66,7 @@ impl Outputs {
     ) -> anyhow::Result<()> {
         if let Some(p) = &self.skeleton {
             let bytes = match extension(p).as_deref() {
-                Some("ply") => skeleton_ply(skeleton),
+                Some("ply") => skeleton.to_ply(),
                 _ => skeleton.to_json().into_bytes(),
             };
             write(p, &bytes)?;

@@ -3,7 +3,7 @@
 //! one tree's skeleton with radii, and its metrics.
 //!
 //! The chosen pipeline and why, and any best-effort notes, go to stderr.
-//! The skeleton PLY (binary, see `silva::mesh::skeleton_ply`) has `element
+//! The skeleton PLY (binary, see `silva::Skeleton::to_ply`) has `element
 //! vertex` (x y z as doubles in the cloud's real coordinates, radius as
 //! float) and `element edge` (vertex1 vertex2), so that it lines up with the
 //! input in any viewer: the georeference stays intact.

@@ -145,6 +145,7 @@ mod write;
 mod xyz;
 
 pub use error::{CloudError, Format, Location};
+pub(crate) use ply::{PlyDocument, read_document};
 pub use read::{
     DETECT_LEN, FileDetails, LasDetails, ReadOptions, detect, read, read_as, read_bytes, read_path,
     read_path_with_details, read_with_details,

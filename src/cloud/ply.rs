@@ -6,6 +6,10 @@
 //! (which element holds the points, where `x y z` sit, how many bytes the
 //! body must at least hold). Only the validation knows PLY's quirks.
 //! Elements before `vertex` are skipped, elements after it are not read.
+//!
+//! [`read_document`] reads every element of a document into named columns,
+//! for PLY files that are not point clouds (the skeleton PLY,
+//! `crate::skeleton`), with the same header parser and row decoding.
 
 use std::io::{BufRead, BufReader, Read, Seek, Write};
 
@@ -121,6 +125,8 @@ struct RawHeader {
     len: u64,
     /// Number of header lines, so ascii body lines can be numbered.
     lines: u64,
+    /// The text of the `comment` lines, in order.
+    comments: Vec<String>,
 }
 
 /// Which vertex property feeds which output field.
@@ -222,6 +228,7 @@ fn read_raw_header<R: BufRead>(reader: &mut R) -> Result<RawHeader, CloudError> 
     let mut lines = 0u64;
     let mut encoding = None;
     let mut elements: Vec<RawElement> = Vec::new();
+    let mut comments = Vec::new();
     loop {
         let line = header_line(reader, &mut consumed)?;
         lines += 1;
@@ -238,7 +245,14 @@ fn read_raw_header<R: BufRead>(reader: &mut R) -> Result<RawHeader, CloudError> 
                     other => return Err(malformed(at, format!("unknown encoding {other:?}"))),
                 });
             }
-            ["comment", ..] | ["obj_info", ..] | [] => {}
+            ["comment", ..] => {
+                let text = line
+                    .trim_start()
+                    .strip_prefix("comment")
+                    .unwrap_or_default();
+                comments.push(text.trim().to_owned());
+            }
+            ["obj_info", ..] | [] => {}
             ["element", name, count] => {
                 let count = count
                     .parse::<u64>()
@@ -271,6 +285,7 @@ fn read_raw_header<R: BufRead>(reader: &mut R) -> Result<RawHeader, CloudError> 
         elements,
         len: consumed,
         lines,
+        comments,
     })
 }
 
@@ -485,49 +500,85 @@ fn read_ascii_body<R: BufRead>(
     layout: &VertexLayout,
     builder: &mut CloudBuilder,
 ) -> Result<(), CloudError> {
-    let mut line_no = raw.lines;
-    let mut line = Vec::new();
-    let mut next_line =
-        |line: &mut Vec<u8>, what: &dyn Fn() -> String| -> Result<u64, CloudError> {
-            line.clear();
-            let n = reader.take(MAX_LINE as u64 + 1).read_until(b'\n', line)?;
-            line_no += 1;
-            if n == 0 {
-                return Err(malformed(
-                    Location::Line(line_no),
-                    format!("file ends before {}", what()),
-                ));
-            }
-            if n > MAX_LINE {
-                return Err(malformed(
-                    Location::Line(line_no),
-                    format!("line longer than {MAX_LINE} bytes"),
-                ));
-            }
-            Ok(line_no)
-        };
+    let mut lines = AsciiLines::after(raw);
     for element in &layout.skipped {
         for i in 0..element.count {
-            next_line(&mut line, &|| {
+            lines.next(reader, &|| {
                 format!("{} {i} of {}", element.name, element.count)
             })?;
         }
     }
     for i in 0..layout.count {
-        let at = Location::Line(next_line(&mut line, &|| {
-            format!("vertex {i} of {}", layout.count)
-        })?);
-        let values = parse_ascii_vertex(&line, &layout.properties)
+        let at = Location::Line(lines.next(reader, &|| format!("vertex {i} of {}", layout.count))?);
+        let values = parse_ascii_vertex(&lines.line, &layout.properties)
             .map_err(|reason| malformed(at, reason))?;
         builder.push(DVec3::from_array(values.xyz), values.attrs, at)?;
     }
     Ok(())
 }
 
+/// The body lines of an ascii PLY, numbered as in the file.
+struct AsciiLines {
+    line_no: u64,
+    /// The line last read, with its line ending.
+    line: Vec<u8>,
+}
+
+impl AsciiLines {
+    /// Lines after `raw`'s header.
+    fn after(raw: &RawHeader) -> Self {
+        AsciiLines {
+            line_no: raw.lines,
+            line: Vec::new(),
+        }
+    }
+
+    /// Reads the next line into `self.line` and returns its number; `what`
+    /// names the item it should hold, for the error at the end of the file.
+    fn next<R: BufRead>(
+        &mut self,
+        reader: &mut R,
+        what: &dyn Fn() -> String,
+    ) -> Result<u64, CloudError> {
+        self.line.clear();
+        let n = reader
+            .take(MAX_LINE as u64 + 1)
+            .read_until(b'\n', &mut self.line)?;
+        self.line_no += 1;
+        if n == 0 {
+            return Err(malformed(
+                Location::Line(self.line_no),
+                format!("file ends before {}", what()),
+            ));
+        }
+        if n > MAX_LINE {
+            return Err(malformed(
+                Location::Line(self.line_no),
+                format!("line longer than {MAX_LINE} bytes"),
+            ));
+        }
+        Ok(self.line_no)
+    }
+}
+
 fn parse_ascii_vertex(
     line: &[u8],
     properties: &[(RawProperty, Role)],
 ) -> Result<VertexValues, String> {
+    let mut values = VertexValues::default();
+    parse_ascii_row(line, properties.iter().map(|(p, _)| p), |i, v| {
+        values.set(properties[i].1, v)
+    })?;
+    Ok(values)
+}
+
+/// Parses one ascii row of `properties`, handing each scalar's index and
+/// value to `set` (lists are checked and skipped).
+fn parse_ascii_row<'p>(
+    line: &[u8],
+    properties: impl Iterator<Item = &'p RawProperty>,
+    mut set: impl FnMut(usize, f64),
+) -> Result<(), String> {
     let text = std::str::from_utf8(line).map_err(|_| "not UTF-8 text".to_owned())?;
     let mut words = text.split_ascii_whitespace();
     let mut next = |what: &str| -> Result<f64, String> {
@@ -537,10 +588,9 @@ fn parse_ascii_vertex(
         w.parse::<f64>()
             .map_err(|_| format!("not a number: {:?}", truncate(w)))
     };
-    let mut values = VertexValues::default();
-    for (p, role) in properties {
+    for (i, p) in properties.enumerate() {
         match p {
-            RawProperty::Scalar { name, .. } => values.set(*role, next(name)?),
+            RawProperty::Scalar { name, .. } => set(i, next(name)?),
             RawProperty::List { name, .. } => {
                 let n = next(name)?;
                 if !(0.0..=MAX_LINE as f64).contains(&n) || n.fract() != 0.0 {
@@ -552,7 +602,165 @@ fn parse_ascii_vertex(
             }
         }
     }
-    Ok(values)
+    Ok(())
+}
+
+/// One element of a document read by [`read_document`]: its row count and
+/// the scalar columns the caller kept.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct PlyElement {
+    /// The element's name (`vertex`, `edge`, `face`, …).
+    pub(crate) name: String,
+    /// Rows in the body.
+    pub(crate) rows: u64,
+    /// `(property name, one value per row)` for each kept scalar property.
+    pub(crate) columns: Vec<(String, Vec<f64>)>,
+}
+
+impl PlyElement {
+    /// The values of the kept scalar property `name`, one per row.
+    pub(crate) fn column(&self, name: &str) -> Option<&[f64]> {
+        self.columns
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+}
+
+/// A whole PLY document, read for the properties its caller keeps.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct PlyDocument {
+    /// The text of the header's `comment` lines, in order.
+    pub(crate) comments: Vec<String>,
+    /// Every element, in file order.
+    pub(crate) elements: Vec<PlyElement>,
+}
+
+impl PlyDocument {
+    /// The first element called `name`.
+    pub(crate) fn element(&self, name: &str) -> Option<&PlyElement> {
+        self.elements.iter().find(|e| e.name == name)
+    }
+}
+
+/// Reads every element of the PLY document `bytes` (ascii or binary),
+/// keeping the scalar properties for which `keep(element, property)` holds.
+///
+/// An element with kept properties may hold at most `max_rows` rows, and
+/// its header count must fit in the bytes that follow the header before any
+/// column is allocated, so a hostile header cannot make it allocate more
+/// than a small multiple of the input.
+pub(crate) fn read_document(
+    bytes: &[u8],
+    keep: &dyn Fn(&str, &str) -> bool,
+    max_rows: u64,
+) -> Result<PlyDocument, CloudError> {
+    let mut reader = bytes;
+    let raw = read_raw_header(&mut reader)?;
+    let mut lines = AsciiLines::after(&raw);
+    let mut pos = raw.len;
+    let mut elements = Vec::with_capacity(raw.elements.len());
+    for element in &raw.elements {
+        let kept: Vec<Option<usize>> = element
+            .properties
+            .iter()
+            .scan(0, |next, p| {
+                Some(match p {
+                    RawProperty::Scalar { name, .. } if keep(&element.name, name) => {
+                        *next += 1;
+                        Some(*next - 1)
+                    }
+                    _ => None,
+                })
+            })
+            .collect();
+        let mut columns: Vec<(String, Vec<f64>)> = element
+            .properties
+            .iter()
+            .zip(&kept)
+            .filter_map(|(p, k)| match (p, k) {
+                (RawProperty::Scalar { name, .. }, Some(_)) => Some((name.clone(), Vec::new())),
+                _ => None,
+            })
+            .collect();
+        // A binary element without properties occupies no bytes, whatever its count.
+        let rows = if raw.encoding != Encoding::Ascii && element.properties.is_empty() {
+            0
+        } else {
+            element.count
+        };
+        if !columns.is_empty() {
+            check_rows(element, rows, max_rows, &raw, reader.len() as u64)?;
+            for (_, values) in &mut columns {
+                values.reserve_exact(rows as usize);
+            }
+        }
+        let mut set = |k: usize, v: f64| {
+            if let Some(c) = kept[k] {
+                columns[c].1.push(v);
+            }
+        };
+        for i in 0..rows {
+            if raw.encoding == Encoding::Ascii {
+                let at = lines.next(&mut reader, &|| {
+                    format!("{} {i} of {}", element.name, element.count)
+                })?;
+                parse_ascii_row(&lines.line, element.properties.iter(), &mut set)
+                    .map_err(|reason| malformed(Location::Line(at), reason))?;
+            } else {
+                for (k, p) in element.properties.iter().enumerate() {
+                    set(
+                        k,
+                        read_binary_property(&mut reader, &mut pos, raw.encoding, p)?,
+                    );
+                }
+            }
+        }
+        elements.push(PlyElement {
+            name: element.name.clone(),
+            rows,
+            columns,
+        });
+    }
+    Ok(PlyDocument {
+        comments: raw.comments,
+        elements,
+    })
+}
+
+/// Refuses an element whose rows exceed `max_rows` or cannot fit in the
+/// `remaining` bytes (at least two per ascii row: a value and a newline).
+fn check_rows(
+    element: &RawElement,
+    rows: u64,
+    max_rows: u64,
+    raw: &RawHeader,
+    remaining: u64,
+) -> Result<(), CloudError> {
+    if rows > max_rows {
+        return Err(malformed(
+            Location::Header,
+            format!(
+                "element {} has {rows} rows, more than the limit of {max_rows}",
+                element.name
+            ),
+        ));
+    }
+    let per_row = match raw.encoding {
+        Encoding::Ascii => 2,
+        _ => min_binary_size(&element.properties).max(1) as u64,
+    };
+    if rows > remaining / per_row {
+        return Err(malformed(
+            Location::Byte(raw.len),
+            format!(
+                "header promises {rows} {} rows of at least {per_row} bytes, but at most \
+                 {remaining} bytes are left for them",
+                element.name
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Writes binary little-endian PLY with absolute `double` coordinates and,

@@ -3,20 +3,25 @@
 //! The L-system writer/reader (LsJSON, lsystem-from-adtree-skeletons
 //! §3.2–3.3) and the DBF6 chain code with LOD reduction and interpolative
 //! compression (chain-code-tree-compression-lod §3), and [`decode_stored`],
-//! which reads any stored form of a skeleton recognised by content. No IO.
+//! which reads any file form of a skeleton recognised by content. No IO.
 
 pub mod chaincode;
 pub mod lsystem;
 
 use crate::Skeleton;
 
-/// Reads a skeleton from any of its stored forms, recognised by content (as
-/// `silva decode` and `silva export` do): a chain code starts with the `SLVC`
-/// magic (either byte form), a silva skeleton JSON names the format
-/// `"silva-skeleton"`, any other text is LsJSON. Every reader runs with its
-/// default [`chaincode::Limits`] / [`lsystem::Limits`], so hostile bytes give
-/// a typed error, never an unbounded expansion.
+/// Reads a skeleton from any of its file forms, recognised by content (as
+/// `silva encode`, `silva decode` and `silva export` do): a chain code starts
+/// with the `SLVC` magic (either byte form), a skeleton PLY (silva's or
+/// AdTree's, [`Skeleton::from_ply`]) with the line `ply`, a silva skeleton
+/// JSON names the format `"silva-skeleton"`, any other text is LsJSON. Every
+/// reader runs with its default limits ([`chaincode::Limits`],
+/// [`lsystem::Limits`], [`crate::skeleton::MAX_PLY_NODES`]), so hostile bytes
+/// give a typed error, never an unbounded expansion.
 pub fn decode_stored(bytes: &[u8]) -> crate::Result<Skeleton> {
+    if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
+        return Ok(Skeleton::from_ply(bytes)?);
+    }
     if chaincode::is_chain_code(bytes) {
         let limits = chaincode::Limits::default();
         let code = chaincode::ChainCode::decompress(bytes, &limits)

@@ -11,9 +11,9 @@
 //! with the chain code's LOD reduction (chain-code-tree-compression-lod §3.2).
 //!
 //! Writers turn a [`Mesh`] into OBJ ([`obj`]), binary PLY ([`mesh_ply`]) and
-//! glTF 2.0 binary ([`glb`]); the skeleton itself is written as PLY
-//! ([`skeleton_ply`]) and as a TreeQSM-style cylinder table
-//! ([`cylinder_table_csv`]); its JSON form is [`Skeleton::to_json`]. Writers
+//! glTF 2.0 binary ([`glb`]); the skeleton itself is written as a
+//! TreeQSM-style cylinder table ([`cylinder_table_csv`]); its own file forms
+//! are [`Skeleton::to_json`] and [`Skeleton::to_ply`]. Writers
 //! return bytes; the caller does the IO.
 //!
 //! ```
@@ -46,7 +46,7 @@ mod table;
 pub use gltf::glb;
 pub use lod::{Lod, prune_thin_branches, select, trunk_radius_m};
 pub use obj::obj;
-pub use ply::{mesh_ply, skeleton_ply};
+pub use ply::mesh_ply;
 pub use sweep::{MIN_RADIUS_M, ring_radius_scale};
 pub use table::{CYLINDER_TABLE_HEADER, cylinder_table_csv};
 

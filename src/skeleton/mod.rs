@@ -422,4 +422,7 @@ impl Skeleton {
 }
 
 mod json;
+mod ply;
 pub use json::SkeletonJsonError;
+pub(crate) use ply::ply_header_start;
+pub use ply::{MAX_PLY_NODES, SkeletonPlyError};

@@ -1,6 +1,9 @@
 //! Synthetic test trees for the mesh and CityJSON tests and benchmarks:
 //! random branching skeletons whose radii follow the pipe model, so they
-//! taper from trunk to twigs like reconstructed trees do.
+//! taper from trunk to twigs like reconstructed trees do; and the split of a
+//! binary PLY file into header and body.
+
+#![allow(dead_code)] // each test binary uses a different subset
 
 use std::collections::VecDeque;
 
@@ -102,4 +105,17 @@ fn pipe_model_radii(tree: &mut Skeleton) {
     for id in tree.ids() {
         tree.set_radius(id, TIP_RADIUS_M * (tips[id.index()] as f32).sqrt());
     }
+}
+
+/// A binary PLY file's header (through `end_header`) and body.
+pub fn split_ply(bytes: &[u8]) -> (String, &[u8]) {
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .expect("PLY header")
+        + 11;
+    (
+        String::from_utf8(bytes[..end].to_vec()).unwrap(),
+        &bytes[end..],
+    )
 }
