@@ -11,6 +11,7 @@ use glam::DVec3;
 use serde_json::Value;
 use silva::Skeleton;
 use silva::encode::chaincode::{self, ChainCode};
+use silva::mesh::Lod;
 
 const ORIGIN: DVec3 = DVec3::new(155_000.0, 463_000.0, 1.0);
 
@@ -66,6 +67,33 @@ async fn ingest_poll_and_download() {
             let code = ChainCode::decompress(&bytes, &chaincode::Limits::default()).unwrap();
             let decoded = chaincode::decode(&code).unwrap();
             assert_eq!(decoded.internode_count(), skeleton.internode_count());
+
+            // Levels 1 and 2 are cut from the code and decode to the mesh's
+            // branches at that level; level 3 is the stored code; 0 has none.
+            for (level, lod) in [(1, Lod::L1), (2, Lod::L2)] {
+                let res = srv.get(&format!("/v1/trees/{id}/chaincode?lod={level}")).await;
+                assert_eq!(res.status(), 200);
+                let bytes = res.bytes().await.unwrap();
+                let cut = ChainCode::decompress(&bytes, &chaincode::Limits::default()).unwrap();
+                let cut = chaincode::decode(&cut).unwrap();
+                assert_eq!(cut.len(), silva::mesh::select(&decoded, lod).len());
+                assert!(cut.len() < decoded.len(), "level {level} keeps every node");
+            }
+            let res = srv.get(&format!("/v1/trees/{id}/chaincode?lod=3")).await;
+            assert_eq!(res.bytes().await.unwrap(), bytes);
+            assert_problem(srv.get(&format!("/v1/trees/{id}/chaincode?lod=0")).await, 400).await;
+
+            // The skeleton as PLY reads back as the same georeferenced tree.
+            let res = srv.get(&format!("/v1/trees/{id}/skeleton?format=ply")).await;
+            assert_eq!(res.headers()["content-type"], "application/ply");
+            let ply = Skeleton::from_ply(&res.bytes().await.unwrap()).unwrap();
+            assert_eq!(ply.len(), skeleton.len());
+            assert_eq!(ply.anchor().crs.as_deref(), Some("EPSG:28992"));
+            for (a, b) in skeleton.ids().zip(ply.ids()) {
+                let d = skeleton.absolute_position(a) - ply.absolute_position(b);
+                assert!(d.length() < 1e-6);
+            }
+            assert_problem(srv.get(&format!("/v1/trees/{id}/skeleton?format=obj")).await, 400).await;
 
             // Meshes: GLB (default), OBJ and PLY at every LOD.
             let res = srv.get(&format!("/v1/trees/{id}/mesh")).await;

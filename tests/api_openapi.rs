@@ -102,21 +102,25 @@ async fn the_spec_documents_what_the_server_answers() {
 
     // Enumerations: every listed value passes the query check (the missing
     // tree or the empty body answers), anything else is a 400.
-    let formats = parameter(&spec, "/v1/trees/{id}/mesh", "get", "format")["enum"]
-        .as_array()
-        .expect("mesh formats are an enum");
-    for format in formats {
-        let format = format.as_str().unwrap();
-        let res = srv
-            .get(&format!("/v1/trees/{none}/mesh?format={format}"))
-            .await;
-        assert_problem(res, 404).await;
+    for download in ["mesh", "skeleton"] {
+        let path = format!("/v1/trees/{{id}}/{download}");
+        let formats = parameter(&spec, &path, "get", "format")["enum"]
+            .as_array()
+            .expect("download formats are an enum");
+        for format in formats {
+            let format = format.as_str().unwrap();
+            let res = srv
+                .get(&format!("/v1/trees/{none}/{download}?format={format}"))
+                .await;
+            assert_problem(res, 404).await;
+        }
+        assert_problem(
+            srv.get(&format!("/v1/trees/{none}/{download}?format="))
+                .await,
+            400,
+        )
+        .await;
     }
-    assert_problem(
-        srv.get(&format!("/v1/trees/{none}/mesh?format=")).await,
-        400,
-    )
-    .await;
     let modes = parameter(&spec, "/v1/trees", "post", "mode")["enum"]
         .as_array()
         .expect("modes are an enum");
@@ -137,6 +141,11 @@ async fn the_spec_documents_what_the_server_answers() {
             "/v1/trees/{id}/cityjson",
             "lod",
             format!("/v1/trees/{none}/cityjson?lod="),
+        ),
+        (
+            "/v1/trees/{id}/chaincode",
+            "lod",
+            format!("/v1/trees/{none}/chaincode?lod="),
         ),
         (
             "/v1/cityjson",

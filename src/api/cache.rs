@@ -47,6 +47,10 @@ pub enum ArtifactKind {
     Mesh(crate::mesh::MeshFormat, crate::mesh::Lod),
     /// A single-tree CityJSON document at a level of detail.
     CityJson(crate::mesh::Lod),
+    /// The skeleton as PLY.
+    SkeletonPly,
+    /// The compressed chain code cut down to a level of detail.
+    ChainCode(crate::mesh::Lod),
 }
 
 /// A bounded map from (model, kind) to artifact.

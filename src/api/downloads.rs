@@ -21,6 +21,7 @@ use super::error::Problem;
 use super::extract::{ApiPath, ApiQuery};
 use super::schema::Binary;
 use super::{ApiError, AppState, ReadAccess};
+use crate::encode::chaincode::{self, ChainCode};
 use crate::mesh::{Lod, MeshFormat, build_mesh};
 use crate::skeleton::Skeleton;
 use crate::store::ModelColumn;
@@ -114,16 +115,32 @@ async fn stored(
     Ok(artifact)
 }
 
-/// The skeleton with radii, as silva skeleton JSON.
+/// Format of a skeleton download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct SkeletonQuery {
+    /// `json` (default): silva skeleton JSON; `ply`: binary PLY with one
+    /// vertex per node (absolute `double x y z`, `float radius`) and one
+    /// edge per internode, parent to child, as `silva reconstruct
+    /// --skeleton s.ply` writes it.
+    #[param(value_type = Option<super::schema::SkeletonFormatName>, inline)]
+    format: Option<String>,
+}
+
+/// The skeleton with radii, as silva skeleton JSON or PLY.
 #[utoipa::path(
     get,
     path = "/v1/trees/{id}/skeleton",
     tag = "downloads",
-    params(("id" = Uuid, Path, description = "Tree id")),
+    params(("id" = Uuid, Path, description = "Tree id"), SkeletonQuery),
     responses(
-        (status = 200, description = "silva skeleton JSON: anchor and `[x, y, z, radius_m, parent]` nodes",
-            body = Object, content_type = "application/json", headers(("ETag" = String))),
+        (status = 200, description = "The skeleton", headers(("ETag" = String)),
+            content(
+                (Object = "application/json"),
+                (Binary = "application/ply"),
+            )),
         (status = 304, description = "Unchanged"),
+        (status = 400, description = "Unknown format, or the id is not a UUID", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not reconstructed yet", body = Problem, content_type = "application/problem+json"),
     )
@@ -132,10 +149,30 @@ pub(super) async fn skeleton(
     State(state): State<Arc<AppState>>,
     _: ReadAccess,
     ApiPath(id): ApiPath<Uuid>,
+    ApiQuery(query): ApiQuery<SkeletonQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let artifact = stored(&state, id, ModelColumn::Skeleton, "application/json").await?;
-    Ok(respond(artifact, &headers))
+    match query.format.as_deref().unwrap_or("json") {
+        "json" => {
+            let artifact = stored(&state, id, ModelColumn::Skeleton, "application/json").await?;
+            Ok(respond(artifact, &headers))
+        }
+        "ply" => {
+            let model = current_model(&state, id).await?;
+            if let Some(hit) = state.cache.get(model, ArtifactKind::SkeletonPly) {
+                return Ok(respond(hit, &headers));
+            }
+            let (model, skeleton) = current_skeleton(&state, id).await?;
+            let artifact = Artifact::new(skeleton.to_ply(), "application/ply");
+            state
+                .cache
+                .insert(model, ArtifactKind::SkeletonPly, artifact.clone());
+            Ok(respond(artifact, &headers))
+        }
+        other => Err(ApiError::BadRequest(format!(
+            "format: expected json or ply, found {other:?}"
+        ))),
+    }
 }
 
 /// The tree as an L-system (LsJSON).
@@ -162,16 +199,30 @@ pub(super) async fn lsystem(
     Ok(respond(artifact, &headers))
 }
 
-/// The tree as a compressed DBF6 chain code.
+/// Level of a chain code download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct ChainCodeQuery {
+    /// Level of detail 1 (scaffold limbs) to 3 (every branch, the stored
+    /// code); default 3. Levels 1 and 2 are cut from the code itself
+    /// (Pseudocode 2 of the chain-code paper) and decode to the branches of
+    /// the mesh at the same level; level 0 selects branches by order and has
+    /// no chain code.
+    #[param(minimum = 1, maximum = 3)]
+    lod: Option<u8>,
+}
+
+/// The tree as a compressed DBF6 chain code, whole or at a level of detail.
 #[utoipa::path(
     get,
     path = "/v1/trees/{id}/chaincode",
     tag = "downloads",
-    params(("id" = Uuid, Path, description = "Tree id")),
+    params(("id" = Uuid, Path, description = "Tree id"), ChainCodeQuery),
     responses(
         (status = 200, description = "Compressed DBF6 chain code", body = Binary,
             content_type = "application/octet-stream", headers(("ETag" = String))),
         (status = 304, description = "Unchanged"),
+        (status = 400, description = "A LOD other than 1 to 3, or the id is not a UUID", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "Not reconstructed yet", body = Problem, content_type = "application/problem+json"),
     )
@@ -180,15 +231,41 @@ pub(super) async fn chaincode(
     State(state): State<Arc<AppState>>,
     _: ReadAccess,
     ApiPath(id): ApiPath<Uuid>,
+    ApiQuery(query): ApiQuery<ChainCodeQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let artifact = stored(
-        &state,
-        id,
-        ModelColumn::ChainCode,
-        "application/octet-stream",
-    )
-    .await?;
+    let lod = match query.lod.map(parse_lod).transpose()? {
+        Some(Lod::L0) => {
+            return Err(ApiError::BadRequest(
+                "lod: 0 selects branches by order and has no chain code; expected 1 to 3".into(),
+            ));
+        }
+        Some(lod) => lod,
+        None => Lod::L3,
+    };
+    const MEDIA_TYPE: &str = "application/octet-stream";
+    if lod == Lod::L3 {
+        let full = stored(&state, id, ModelColumn::ChainCode, MEDIA_TYPE).await?;
+        return Ok(respond(full, &headers));
+    }
+    let model = current_model(&state, id).await?;
+    let kind = ArtifactKind::ChainCode(lod);
+    if let Some(hit) = state.cache.get(model, kind) {
+        return Ok(respond(hit, &headers));
+    }
+    let full = stored(&state, id, ModelColumn::ChainCode, MEDIA_TYPE).await?;
+    let artifact = tokio::task::spawn_blocking(move || {
+        let limits = chaincode::Limits::default();
+        let code = ChainCode::decompress(&full.bytes, &limits)
+            .map_err(|e| ApiError::Internal(format!("stored chain code of model {model}: {e}")))?;
+        let cut = lod
+            .reduce_chain_code(&code)
+            .map_err(|e| ApiError::Internal(format!("stored chain code of model {model}: {e}")))?
+            .expect("levels 1 to 3 have a threshold");
+        Ok::<_, ApiError>(Artifact::new(cut.compress(), MEDIA_TYPE))
+    })
+    .await??;
+    state.cache.insert(model, kind, artifact.clone());
     Ok(respond(artifact, &headers))
 }
 

@@ -338,6 +338,11 @@ param_schema!(
 );
 
 param_schema!(
+    /// The `format` of a skeleton download.
+    SkeletonFormatName => one_of(["json", "ply"])
+);
+
+param_schema!(
     /// A `bbox`: four comma-separated decimal numbers, as `parse_bbox`
     /// reads them. The pattern cannot say that min is at most max; exponents
     /// of at most two digits keep the numbers finite.

@@ -22,6 +22,7 @@
 //! first-order branch instead would keep the many thin twigs along the trunk
 //! and give LOD 0 more triangles than LOD 1.
 
+use crate::encode::chaincode::{self, ChainCode, ChainError};
 use crate::skeleton::{NodeId, Skeleton};
 
 /// A level of detail, coarsest ([`Lod::L0`]) to full ([`Lod::L3`]).
@@ -99,6 +100,40 @@ impl Lod {
             Lod::L2 => Some(L2_RELATIVE_RADIUS * trunk),
             Lod::L3 => Some(0.0),
         }
+    }
+
+    /// `code` cut down to this level on the code itself, without decoding
+    /// it into a skeleton and encoding again (chain-code-tree-compression-lod
+    /// §3.2, Pseudocode 2), with this level's threshold
+    /// ([`Lod::radius_threshold_m`]) taken from the trunk radius the code
+    /// decodes to. The cut code decodes to [`select`] of the decoded
+    /// skeleton at this level (docs/lod.md). `None` for [`Lod::L0`], which
+    /// selects by branch order and has no single threshold.
+    ///
+    /// ```
+    /// use glam::{DVec3, Vec3};
+    /// use silva::encode::chaincode::{self, ChainOptions};
+    /// use silva::mesh::{Lod, select};
+    /// use silva::{Anchor, NodeId, Skeleton};
+    ///
+    /// let mut tree = Skeleton::new(Anchor::at(DVec3::new(85_000.0, 446_000.0, 0.0)), 0.20);
+    /// let fork = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.15);
+    /// tree.add_child(fork, Vec3::new(0.0, 0.0, 5.0), 0.10);
+    /// let limb = tree.add_child(fork, Vec3::new(1.5, 0.0, 3.5), 0.08);
+    /// tree.add_child(limb, Vec3::new(2.5, 0.0, 4.5), 0.05);
+    /// tree.add_child(fork, Vec3::new(-0.6, 0.0, 2.6), 0.01);
+    /// let code = chaincode::encode(&tree, &ChainOptions::default()).unwrap();
+    /// let scaffold = Lod::L1.reduce_chain_code(&code).unwrap().unwrap();
+    /// let decoded = chaincode::decode(&code).unwrap();
+    /// assert_eq!(chaincode::decode(&scaffold).unwrap().len(), select(&decoded, Lod::L1).len());
+    /// assert_eq!(select(&decoded, Lod::L1).len(), 5); // the 1 cm twig is gone
+    /// assert!(Lod::L0.reduce_chain_code(&code).unwrap().is_none());
+    /// ```
+    pub fn reduce_chain_code(self, code: &ChainCode) -> Result<Option<ChainCode>, ChainError> {
+        let Some(threshold_m) = self.radius_threshold_m(&chaincode::decode(code)?) else {
+            return Ok(None);
+        };
+        Ok(Some(chaincode::reduce_lod(code, threshold_m)))
     }
 
     /// Ring and curve sampling of this level; coarser levels are viewed from
