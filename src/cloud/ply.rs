@@ -655,77 +655,116 @@ pub(crate) fn read_document(
     keep: &dyn Fn(&str, &str) -> bool,
     max_rows: u64,
 ) -> Result<PlyDocument, CloudError> {
-    let mut reader = bytes;
-    let raw = read_raw_header(&mut reader)?;
-    let mut lines = AsciiLines::after(&raw);
-    let mut pos = raw.len;
+    let mut body = Body {
+        reader: bytes,
+        pos: 0,
+        lines: None,
+    };
+    let raw = read_raw_header(&mut body.reader)?;
+    body.pos = raw.len;
+    body.lines = (raw.encoding == Encoding::Ascii).then(|| AsciiLines::after(&raw));
     let mut elements = Vec::with_capacity(raw.elements.len());
     for element in &raw.elements {
-        let kept: Vec<Option<usize>> = element
-            .properties
-            .iter()
-            .scan(0, |next, p| {
-                Some(match p {
-                    RawProperty::Scalar { name, .. } if keep(&element.name, name) => {
-                        *next += 1;
-                        Some(*next - 1)
-                    }
-                    _ => None,
-                })
-            })
-            .collect();
-        let mut columns: Vec<(String, Vec<f64>)> = element
-            .properties
-            .iter()
-            .zip(&kept)
-            .filter_map(|(p, k)| match (p, k) {
-                (RawProperty::Scalar { name, .. }, Some(_)) => Some((name.clone(), Vec::new())),
-                _ => None,
-            })
-            .collect();
+        let mut columns = Columns::new(element, keep);
         // A binary element without properties occupies no bytes, whatever its count.
         let rows = if raw.encoding != Encoding::Ascii && element.properties.is_empty() {
             0
         } else {
             element.count
         };
-        if !columns.is_empty() {
-            check_rows(element, rows, max_rows, &raw, reader.len() as u64)?;
-            for (_, values) in &mut columns {
-                values.reserve_exact(rows as usize);
-            }
+        if !columns.values.is_empty() {
+            check_rows(element, rows, max_rows, &raw, body.reader.len() as u64)?;
+            columns.reserve(rows);
         }
-        let mut set = |k: usize, v: f64| {
-            if let Some(c) = kept[k] {
-                columns[c].1.push(v);
-            }
-        };
         for i in 0..rows {
-            if raw.encoding == Encoding::Ascii {
-                let at = lines.next(&mut reader, &|| {
-                    format!("{} {i} of {}", element.name, element.count)
-                })?;
-                parse_ascii_row(&lines.line, element.properties.iter(), &mut set)
-                    .map_err(|reason| malformed(Location::Line(at), reason))?;
-            } else {
-                for (k, p) in element.properties.iter().enumerate() {
-                    set(
-                        k,
-                        read_binary_property(&mut reader, &mut pos, raw.encoding, p)?,
-                    );
-                }
-            }
+            body.read_row(element, i, raw.encoding, &mut columns)?;
         }
         elements.push(PlyElement {
             name: element.name.clone(),
             rows,
-            columns,
+            columns: columns.values,
         });
     }
     Ok(PlyDocument {
         comments: raw.comments,
         elements,
     })
+}
+
+/// The kept scalar columns of one element, filled row by row.
+struct Columns {
+    /// Per property of the element: its column, if kept.
+    slot: Vec<Option<usize>>,
+    /// `(property name, values)` of the kept properties.
+    values: Vec<(String, Vec<f64>)>,
+}
+
+impl Columns {
+    fn new(element: &RawElement, keep: &dyn Fn(&str, &str) -> bool) -> Self {
+        let mut columns = Columns {
+            slot: Vec::with_capacity(element.properties.len()),
+            values: Vec::new(),
+        };
+        for p in &element.properties {
+            let kept = match p {
+                RawProperty::Scalar { name, .. } if keep(&element.name, name) => {
+                    columns.values.push((name.clone(), Vec::new()));
+                    Some(columns.values.len() - 1)
+                }
+                _ => None,
+            };
+            columns.slot.push(kept);
+        }
+        columns
+    }
+
+    fn reserve(&mut self, rows: u64) {
+        for (_, values) in &mut self.values {
+            values.reserve_exact(rows as usize);
+        }
+    }
+
+    /// Records the value of the element's `property`-th property, if kept.
+    fn set(&mut self, property: usize, value: f64) {
+        if let Some(c) = self.slot[property] {
+            self.values[c].1.push(value);
+        }
+    }
+}
+
+/// The body of a document in memory, read row by row.
+struct Body<'a> {
+    reader: &'a [u8],
+    /// Byte offset in the file, for binary errors.
+    pos: u64,
+    /// Line numbering, for ascii bodies.
+    lines: Option<AsciiLines>,
+}
+
+impl Body<'_> {
+    /// Reads row `i` of `element` into `columns`.
+    fn read_row(
+        &mut self,
+        element: &RawElement,
+        i: u64,
+        encoding: Encoding,
+        columns: &mut Columns,
+    ) -> Result<(), CloudError> {
+        let Some(lines) = &mut self.lines else {
+            for (k, p) in element.properties.iter().enumerate() {
+                let value = read_binary_property(&mut self.reader, &mut self.pos, encoding, p)?;
+                columns.set(k, value);
+            }
+            return Ok(());
+        };
+        let at = lines.next(&mut self.reader, &|| {
+            format!("{} {i} of {}", element.name, element.count)
+        })?;
+        parse_ascii_row(&lines.line, element.properties.iter(), |k, v| {
+            columns.set(k, v)
+        })
+        .map_err(|reason| malformed(Location::Line(at), reason))
+    }
 }
 
 /// Refuses an element whose rows exceed `max_rows` or cannot fit in the
