@@ -17,7 +17,7 @@ use utoipa::IntoParams;
 use uuid::Uuid;
 
 use super::cache::{Artifact, ArtifactKind};
-use super::downloads::{current_model, current_skeleton, parse_lod, respond};
+use super::downloads::{cached, model_skeleton, parse_lod, respond};
 use super::error::Problem;
 use super::extract::{ApiPath, ApiQuery};
 use super::features::parse_bbox;
@@ -101,23 +101,20 @@ pub(super) async fn cityjson(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let lod = parse_lod(query.lod.unwrap_or(2))?;
-    let kind = ArtifactKind::CityJson(lod);
-    let model = current_model(&state, id).await?;
-    if let Some(hit) = state.cache.get(model, kind) {
-        return Ok(respond(hit, &headers));
-    }
-    let row = state
-        .store
-        .tree(id)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(format!("no tree {id}")))?;
-    let (model, skeleton) = current_skeleton(&state, id).await?;
-    let artifact = tokio::task::spawn_blocking(move || {
-        let doc = cityjson::city_json(&tree_info(&row, &skeleton), &[lod]);
-        Artifact::new(doc.to_string(), MEDIA_TYPE)
+    let artifact = cached(&state, id, ArtifactKind::CityJson(lod), async |model| {
+        let row = state
+            .store
+            .tree(id)
+            .await?
+            .ok_or_else(|| ApiError::NotFound(format!("no tree {id}")))?;
+        let skeleton = model_skeleton(&state, id, model).await?;
+        Ok(tokio::task::spawn_blocking(move || {
+            let doc = cityjson::city_json(&tree_info(&row, &skeleton), &[lod]);
+            Artifact::new(doc.to_string(), MEDIA_TYPE)
+        })
+        .await?)
     })
     .await?;
-    state.cache.insert(model, kind, artifact.clone());
     Ok(respond(artifact, &headers))
 }
 

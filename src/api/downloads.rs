@@ -93,6 +93,38 @@ pub(super) async fn current_model(state: &AppState, tree_id: Uuid) -> Result<Uui
     })
 }
 
+/// The artifact `kind` of the tree's current model: from the cache, or made
+/// by `make` from the model's id and cached. Every download goes through
+/// here, so a model's artifact is made once per replica, whatever asks.
+pub(super) async fn cached(
+    state: &AppState,
+    tree_id: Uuid,
+    kind: ArtifactKind,
+    make: impl AsyncFnOnce(Uuid) -> Result<Artifact, ApiError>,
+) -> Result<Artifact, ApiError> {
+    let model = current_model(state, tree_id).await?;
+    if let Some(hit) = state.cache.get(model, kind) {
+        return Ok(hit);
+    }
+    let artifact = make(model).await?;
+    state.cache.insert(model, kind, artifact.clone());
+    Ok(artifact)
+}
+
+/// A stored column of a model; 404 if the tree was deleted meanwhile.
+async fn model_column(
+    state: &AppState,
+    tree_id: Uuid,
+    model: Uuid,
+    column: ModelColumn,
+) -> Result<Vec<u8>, ApiError> {
+    state
+        .store
+        .model_column(model, column)
+        .await?
+        .ok_or_else(|| ApiError::NotFound(format!("tree {tree_id} was just deleted")))
+}
+
 /// A stored column of the current model, cached.
 async fn stored(
     state: &AppState,
@@ -100,19 +132,16 @@ async fn stored(
     column: ModelColumn,
     content_type: &'static str,
 ) -> Result<Artifact, ApiError> {
-    let model = current_model(state, tree_id).await?;
-    let kind = ArtifactKind::Stored(column);
-    if let Some(hit) = state.cache.get(model, kind) {
-        return Ok(hit);
-    }
-    let bytes = state
-        .store
-        .model_column(model, column)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(format!("tree {tree_id} was just deleted")))?;
-    let artifact = Artifact::new(bytes, content_type);
-    state.cache.insert(model, kind, artifact.clone());
-    Ok(artifact)
+    cached(
+        state,
+        tree_id,
+        ArtifactKind::Stored(column),
+        async |model| {
+            let bytes = model_column(state, tree_id, model, column).await?;
+            Ok(Artifact::new(bytes, content_type))
+        },
+    )
+    .await
 }
 
 /// Format of a skeleton download.
@@ -158,15 +187,11 @@ pub(super) async fn skeleton(
             Ok(respond(artifact, &headers))
         }
         "ply" => {
-            let model = current_model(&state, id).await?;
-            if let Some(hit) = state.cache.get(model, ArtifactKind::SkeletonPly) {
-                return Ok(respond(hit, &headers));
-            }
-            let (model, skeleton) = current_skeleton(&state, id).await?;
-            let artifact = Artifact::new(skeleton.to_ply(), "application/ply");
-            state
-                .cache
-                .insert(model, ArtifactKind::SkeletonPly, artifact.clone());
+            let artifact = cached(&state, id, ArtifactKind::SkeletonPly, async |model| {
+                let skeleton = model_skeleton(&state, id, model).await?;
+                Ok(Artifact::new(skeleton.to_ply(), "application/ply"))
+            })
+            .await?;
             Ok(respond(artifact, &headers))
         }
         other => Err(ApiError::BadRequest(format!(
@@ -248,24 +273,20 @@ pub(super) async fn chaincode(
         let full = stored(&state, id, ModelColumn::ChainCode, MEDIA_TYPE).await?;
         return Ok(respond(full, &headers));
     }
-    let model = current_model(&state, id).await?;
-    let kind = ArtifactKind::ChainCode(lod);
-    if let Some(hit) = state.cache.get(model, kind) {
-        return Ok(respond(hit, &headers));
-    }
-    let full = stored(&state, id, ModelColumn::ChainCode, MEDIA_TYPE).await?;
-    let artifact = tokio::task::spawn_blocking(move || {
-        let limits = chaincode::Limits::default();
-        let code = ChainCode::decompress(&full.bytes, &limits)
-            .map_err(|e| ApiError::Internal(format!("stored chain code of model {model}: {e}")))?;
-        let cut = lod
-            .reduce_chain_code(&code)
-            .map_err(|e| ApiError::Internal(format!("stored chain code of model {model}: {e}")))?
-            .expect("levels 1 to 3 have a threshold");
-        Ok::<_, ApiError>(Artifact::new(cut.compress(), MEDIA_TYPE))
+    let artifact = cached(&state, id, ArtifactKind::ChainCode(lod), async |model| {
+        let full = model_column(&state, id, model, ModelColumn::ChainCode).await?;
+        tokio::task::spawn_blocking(move || {
+            let corrupt =
+                |e| ApiError::Internal(format!("stored chain code of model {model}: {e}"));
+            let code =
+                ChainCode::decompress(&full, &chaincode::Limits::default()).map_err(corrupt)?;
+            let cut = lod.reduce_chain_code(&code).map_err(corrupt)?;
+            let cut = cut.expect("levels 1 to 3 have a threshold");
+            Ok(Artifact::new(cut.compress(), MEDIA_TYPE))
+        })
+        .await?
     })
-    .await??;
-    state.cache.insert(model, kind, artifact.clone());
+    .await?;
     Ok(respond(artifact, &headers))
 }
 
@@ -275,20 +296,15 @@ pub(super) fn parse_lod(level: u8) -> Result<Lod, ApiError> {
         .ok_or_else(|| ApiError::BadRequest(format!("lod: expected 0 to 3, found {level}")))
 }
 
-/// The current model's skeleton, parsed; with the model id.
-pub(super) async fn current_skeleton(
+/// The skeleton of a model, parsed.
+pub(super) async fn model_skeleton(
     state: &AppState,
     tree_id: Uuid,
-) -> Result<(Uuid, Skeleton), ApiError> {
-    let model = current_model(state, tree_id).await?;
-    let json = state
-        .store
-        .model_column(model, ModelColumn::Skeleton)
-        .await?
-        .ok_or_else(|| ApiError::NotFound(format!("tree {tree_id} was just deleted")))?;
-    let skeleton = Skeleton::from_json(&String::from_utf8_lossy(&json))
-        .map_err(|e| ApiError::Internal(format!("stored skeleton of model {model}: {e}")))?;
-    Ok((model, skeleton))
+    model: Uuid,
+) -> Result<Skeleton, ApiError> {
+    let json = model_column(state, tree_id, model, ModelColumn::Skeleton).await?;
+    Skeleton::from_json(&String::from_utf8_lossy(&json))
+        .map_err(|e| ApiError::Internal(format!("stored skeleton of model {model}: {e}")))
 }
 
 /// Format and level of a mesh download.
@@ -337,22 +353,19 @@ pub(super) async fn mesh(
         ApiError::BadRequest(format!("format: expected glb, obj or ply, found {name:?}"))
     })?;
     let lod = parse_lod(query.lod.unwrap_or(1))?;
-    let kind = ArtifactKind::Mesh(format, lod);
-    let model = current_model(&state, id).await?;
-    if let Some(hit) = state.cache.get(model, kind) {
-        return Ok(respond(hit, &headers));
-    }
-    let (model, skeleton) = current_skeleton(&state, id).await?;
-    let artifact = tokio::task::spawn_blocking(move || {
-        let mesh = build_mesh(&skeleton, lod);
-        let anchor = skeleton.anchor();
-        Artifact::new(
-            format.encode(&mesh, anchor, anchor.origin),
-            format.media_type(),
-        )
+    let artifact = cached(&state, id, ArtifactKind::Mesh(format, lod), async |model| {
+        let skeleton = model_skeleton(&state, id, model).await?;
+        Ok(tokio::task::spawn_blocking(move || {
+            let mesh = build_mesh(&skeleton, lod);
+            let anchor = skeleton.anchor();
+            Artifact::new(
+                format.encode(&mesh, anchor, anchor.origin),
+                format.media_type(),
+            )
+        })
+        .await?)
     })
     .await?;
-    state.cache.insert(model, kind, artifact.clone());
     Ok(respond(artifact, &headers))
 }
 
