@@ -149,7 +149,7 @@ fn a_skeleton_ply_encodes_as_its_json_does() {
 }
 
 #[test]
-fn an_adtree_skeleton_ply_is_encoded_with_a_note_on_its_missing_radii() {
+fn an_adtree_skeleton_ply_is_encoded_with_estimated_radii_and_a_note() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // lsystem-from-adtree-skeletons, Fig. 3.11: ascii, no radius, edges
@@ -167,12 +167,22 @@ fn an_adtree_skeleton_ply_is_encoded_with_a_note_on_its_missing_radii() {
         .succeeds();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("every radius is 0"), "{stderr}");
+    assert!(
+        stderr.contains("the radii follow the pipe model"),
+        "{stderr}"
+    );
     silva()
         .current_dir(d)
         .args(["decode", "l.json", "--skeleton", "back.json"])
         .succeeds();
     let back = Skeleton::from_json(&std::fs::read_to_string(d.join("back.json")).unwrap()).unwrap();
     assert_eq!(back.len(), 3);
+    // The estimated radii survive the L-system: positive, thinner upwards.
+    let (root, tip) = (
+        back.radius(silva::NodeId::ROOT),
+        back.radius(back.ids().last().unwrap()),
+    );
+    assert!(root >= tip && tip > 0.0, "root {root}, tip {tip}");
     let base = back.absolute_position(silva::NodeId::ROOT);
     assert!((base - DVec3::new(127_395.5, 401_149.75, 13.0)).length() < 1e-3);
 }

@@ -13,6 +13,7 @@ use anyhow::Context;
 use silva::Skeleton;
 use silva::encode::chaincode::{self, ChainOptions, Resolution};
 use silva::encode::lsystem::{self, LsOptions};
+use silva::reconstruct::radii::{self, estimate_radii};
 
 use super::outputs::{Outputs, write};
 
@@ -120,16 +121,23 @@ pub fn export(args: ExportArgs) -> anyhow::Result<()> {
 
 /// Reads a skeleton from any of its file forms, recognised by content
 /// ([`silva::encode::decode_stored`]). A skeleton without radii (AdTree's
-/// PLY has none) is read, with a note that its meshes will have no volume.
+/// PLY has none) gets the radii of an unseen trunk
+/// ([`silva::reconstruct::radii::estimate_radii`]), with a note: zero radii
+/// would give meshes and CityJSON solids no volume.
 pub fn load_skeleton(path: &Path) -> anyhow::Result<Skeleton> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let skeleton =
+    let mut skeleton =
         silva::encode::decode_stored(&bytes).with_context(|| format!("{}", path.display()))?;
     if skeleton.len() > 1 && skeleton.nodes().iter().all(|n| n.radius_m == 0.0) {
+        let trunk = estimate_radii(&mut skeleton, &radii::Params::default());
         eprintln!(
             "silva: note: {}: every radius is 0 (a skeleton PLY without a radius property, \
-             such as AdTree's), so meshes and CityJSON solids have no volume",
-            path.display()
+             such as AdTree's), so the radii follow the pipe model through a DBH of {:.2} m \
+             estimated from height and crown diameter (Jucker et al. 2017's angiosperm \
+             allometry; {})",
+            path.display(),
+            trunk.dbh_m(),
+            trunk.reason
         );
     }
     Ok(skeleton)

@@ -113,6 +113,20 @@ pub struct TrunkFit {
 }
 
 impl TrunkFit {
+    /// The DBH of [`allometric_dbh_m`] for `crown`, with the reason it was
+    /// not fitted.
+    fn estimated(crown: &Crown, reason: String) -> Self {
+        TrunkFit {
+            radius_m: 0.5 * allometric_dbh_m(crown.height_m, crown.diameter_m),
+            method: DbhMethod::Estimated,
+            centre: None,
+            points: 0,
+            sectors: 0,
+            rms_m: 0.0,
+            reason,
+        }
+    }
+
     /// Diameter at breast height, in metres.
     pub fn dbh_m(&self) -> f32 {
         2.0 * self.radius_m
@@ -187,6 +201,56 @@ pub fn assign_radii(
             },
         );
     }
+    trunk
+}
+
+/// Radii for a skeleton that carries none, such as AdTree's skeleton PLY
+/// (lsystem-from-adtree-skeletons Fig. 3.11): those of an airborne
+/// reconstruction that saw no trunk. The DBH is estimated from the
+/// skeleton's own height and crown diameter ([`allometric_dbh_m`]; its nodes
+/// stand in for the points, so both come out a little short of a cloud's),
+/// and every internode follows the pipe model through it (Eq. 6), tapered
+/// along its chain and never growing towards the tips. On Weber–Penn truths
+/// stripped of their radii (`tests/skeleton_ply.rs`) the DBH comes out at
+/// 0.88–1.24 of the true one for oaks, birches and pines, and at 0.36–0.42 for
+/// the columnar poplars: the allometry reads a narrow crown as a thin stem.
+///
+/// ```
+/// use glam::Vec3;
+/// use silva::reconstruct::radii::{DbhMethod, Params, estimate_radii};
+/// use silva::{Anchor, NodeId, Skeleton};
+///
+/// // A 6 m trunk forking into two limbs, without radii.
+/// let mut tree = Skeleton::new(Anchor::default(), 0.0);
+/// let fork = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 6.0), 0.0);
+/// let limb = tree.add_child(fork, Vec3::new(2.0, 0.0, 9.0), 0.0);
+/// tree.add_child(fork, Vec3::new(-1.0, 2.0, 8.0), 0.0);
+/// let trunk = estimate_radii(&mut tree, &Params::default());
+/// assert_eq!(trunk.method, DbhMethod::Estimated);
+/// assert!(trunk.dbh_m() > 0.05 && trunk.dbh_m() < 0.5, "{}", trunk.dbh_m());
+/// assert!(tree.radius(NodeId::ROOT) >= tree.radius(fork));
+/// assert!(tree.radius(fork) > tree.radius(limb) && tree.radius(limb) > 0.0);
+/// ```
+pub fn estimate_radii(skeleton: &mut Skeleton, params: &Params) -> TrunkFit {
+    let nodes = PointCloud::from_points(
+        skeleton.anchor().origin,
+        skeleton.nodes().iter().map(|n| n.position).collect(),
+    );
+    let crown = Crown::measure(skeleton, &nodes);
+    let trunk = TrunkFit::estimated(
+        &crown,
+        format!(
+            "height {:.1} m and crown diameter {:.1} m measured on the skeleton's nodes",
+            crown.height_m, crown.diameter_m
+        ),
+    );
+    let tips = tips_above(skeleton);
+    let reference = breast_height_node(skeleton, params.breast_height_m);
+    let laws = PipeLaws {
+        stem: PipeLaw::through(tips[reference.index()], trunk.radius_m, params.min_radius_m),
+        branches: None,
+    };
+    pipe_model(skeleton, &tips, laws, trunk.radius_m, params.min_radius_m);
     trunk
 }
 
@@ -411,15 +475,7 @@ fn monotone_fit(skeleton: &Skeleton, radii: &[f32]) -> Vec<f32> {
 
 /// Fits the trunk circle at breast height, or estimates it.
 pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &Params) -> TrunkFit {
-    let estimate = |reason: String| TrunkFit {
-        radius_m: 0.5 * allometric_dbh_m(crown.height_m, crown.diameter_m),
-        method: DbhMethod::Estimated,
-        centre: None,
-        points: 0,
-        sectors: 0,
-        rms_m: 0.0,
-        reason,
-    };
+    let estimate = |reason: String| TrunkFit::estimated(crown, reason);
     let base_z = skeleton.position(NodeId::ROOT).z;
     let Some((axis_point, axis_dir)) = trunk_axis_at(skeleton, params.breast_height_m) else {
         return estimate(format!(

@@ -30,7 +30,8 @@
 //!
 //! Either way the edges must form one tree over all vertices: `n` vertices
 //! joined by `n − 1` edges with every vertex reachable from the root.
-//! Without a `radius` property every radius is 0.
+//! Without a `radius` property every radius is 0 (the CLI then estimates
+//! them: `silva::reconstruct::radii::estimate_radii`).
 //!
 //! The anchor is the root's position, with the CRS of a `comment crs NAME`
 //! line; a `comment origin X Y Z` line (silva writes `0 0 0`) is added to
