@@ -63,12 +63,12 @@ impl Crown {
 /// Returns below the highest whose depth scales [`apex_gap_m`]. More
 /// returns average out more of the spacing's randomness, as long as they
 /// stay in the dome at the top of the crown. On synthetic leaf-off scans at
-/// 20 returns/m² (`silva eval --synthetic 20 --scan als --seed S`, S = 1,
-/// 21, …, 581, and S = 601, …, 1181 held out), the count of trees whose height
-/// came within 0.3 m of the truth went 454 → 468 and 459 → 468 of 600 from
-/// k = 10 to k = 20 (RMSE 0.274 → 0.258 and 0.279 → 0.264 m); k = 25 and 30
-/// were no better (470 and 463; 466 and 467), the poplars' narrow
-/// tops leaving the dome.
+/// 20 returns/m² (`silva eval --synthetic 20 --scan als --repeat 1 --seed
+/// S`, S = 1, 21, …, 581, and S = 601, …, 1181 held out), the trees whose
+/// height came within 0.3 m of the truth went from 454 to 469 and from 459
+/// to 466 of 600 between k = 10 and k = 20 (RMSE 0.275 → 0.259 and 0.279 →
+/// 0.264 m). Computed on the same returns, k = 25 and 30 were no better:
+/// the poplars' narrow tops leave the dome.
 const APEX_RETURNS: usize = 20;
 
 /// Standard deviation of the height error [`apex_gap_m`] leaves, as a share
@@ -102,8 +102,8 @@ pub const APEX_GAP_SCATTER: f32 = 0.63;
 /// and no statistic of the returns' heights tells which way. Under the
 /// dome model itself the gap's standard deviation is 0.52 of its mean
 /// (Rayleigh), and this estimate's error 0.63 of it (Monte Carlo). With 10
-/// returns, on synthetic leaf-off scans at 20 returns/m² (seeds 1–100 per species), the
-/// true gap of the poplars was 0.50 ± 0.29 m (10–90 %: 0.18–0.93 m), the
+/// returns, on synthetic leaf-off scans at 20 returns/m² (seeds 1–100 per
+/// species), the true gap of the poplars was 0.50 ± 0.29 m (10–90 %: 0.18–0.93 m), the
 /// height error 0.00 ± 0.37 m; the three trees of `silva eval --synthetic
 /// 20 --scan als` more than 0.3 m high (poplars 15 and 19, birch 10) are
 /// those whose highest return fell 0.03–0.16 m under the top, the 1st–8th
