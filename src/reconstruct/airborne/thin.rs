@@ -15,6 +15,7 @@
 
 use glam::{IVec3, Vec3};
 
+use crate::reconstruct::principal_spreads;
 use crate::spatial::PointIndex;
 
 /// Offsets of the 26 neighbours and the centre, indexed `(dx+1)·9 + (dy+1)·3
@@ -169,6 +170,43 @@ pub(super) fn contract(candidates: &[Vec3], tree: &[Vec3], radius_m: f32) -> Vec
         .collect()
 }
 
+/// Fewest candidates around one for its linearity in [`crown_linearity`].
+const MIN_LINEARITY_NEIGHBOURS: usize = 5;
+
+/// The median linearity `1 − σ₂²/σ₁²` (σ: spreads along the principal axes)
+/// of the candidates within `radius_m` of each candidate in the crown's
+/// upper 60 % by height, or `None` without any such neighbourhood. Twigs
+/// seen bare give lines (near 1); foliage gives clumps (near 0.5 for a
+/// scatter that fills a disc or ball). See `Params::bare_crown_linearity`.
+pub(super) fn crown_linearity(candidates: &[Vec3], radius_m: f32) -> Option<f32> {
+    let (lo, hi) = candidates.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+        (lo.min(p.z), hi.max(p.z))
+    });
+    let floor = lo + 0.4 * (hi - lo);
+    let crown: Vec<Vec3> = candidates.iter().copied().filter(|p| p.z > floor).collect();
+    let index = PointIndex::new(&crown);
+    let mut linearity: Vec<f32> = crown
+        .iter()
+        .filter_map(|&c| {
+            let near: Vec<Vec3> = index
+                .within(c, radius_m)
+                .iter()
+                .map(|n| crown[n.index])
+                .collect();
+            if near.len() < MIN_LINEARITY_NEIGHBOURS {
+                return None;
+            }
+            let [first, second, _] = principal_spreads(&near);
+            (first > 0.0).then(|| (1.0 - (second / first).powi(2)) as f32)
+        })
+        .collect();
+    if linearity.is_empty() {
+        return None;
+    }
+    let mid = linearity.len() / 2;
+    Some(*linearity.select_nth_unstable_by(mid, f32::total_cmp).1)
+}
+
 fn offsets() -> impl Iterator<Item = IVec3> {
     OFFSETS.into_iter()
 }
@@ -270,6 +308,35 @@ impl Masks {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Returns along twigs give lines (linearity near 1); a clump that
+    /// fills a block gives far less (0.33 here: the crown's upper 60 % cut
+    /// its lower layers off).
+    #[test]
+    fn twigs_are_linear_and_clumps_are_not() {
+        let twigs: Vec<Vec3> = (0..40)
+            .flat_map(|t| {
+                let s = t as f32 * 0.15;
+                [
+                    Vec3::new(s, 0.0, 5.0 + s),
+                    Vec3::new(0.0, 3.0 + s, 5.0 + 0.5 * s),
+                ]
+            })
+            .collect();
+        let linear = crown_linearity(&twigs, 0.6).expect("neighbourhoods");
+        assert!(linear > 0.95, "twigs {linear}");
+        let mut clump = Vec::new();
+        for x in -3..=3 {
+            for y in -3..=3 {
+                for z in -3..=3 {
+                    clump.push(Vec3::new(x as f32, y as f32, 10.0 + z as f32) * 0.2);
+                }
+            }
+        }
+        let round = crown_linearity(&clump, 0.6).expect("neighbourhoods");
+        assert!(round < 0.5, "clump {round}");
+        assert_eq!(crown_linearity(&clump[..3], 0.6), None);
+    }
 
     #[test]
     fn a_solid_block_thins_to_a_few_voxels_and_a_line_survives() {
