@@ -26,7 +26,11 @@
 //! recall 0.9 (seeds 5, 21, 29), the trunk and the limbs' first metres are
 //! missed where the trunk base is placed 0.4–1.1 m off: birch and oak
 //! trunks placed by Eq. 4 (no stem returns under the crown) give 24 of the
-//! 32 base misses and 23 of the 74 recall misses over seeds 1–600.
+//! 32 base misses over seeds 1–600, and 20 of the 40 recall misses (23 of 74
+//! before bare crowns stopped being contracted). On the oaks whose base was
+//! right, the first 0–2.5 m of the limbs lay 0.5–0.8 m from the
+//! reconstruction; that is what leaving a bare crown's candidates on the
+//! returns (`airborne::Params::bare_crown_linearity`) mended.
 
 use glam::Vec3;
 use silva::Anchor;
