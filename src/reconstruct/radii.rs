@@ -891,7 +891,7 @@ impl PipeLaw {
 }
 
 /// The median of `values` (the upper one of an even count; not empty).
-fn median(values: &mut [f32]) -> f32 {
+pub(crate) fn median(values: &mut [f32]) -> f32 {
     let mid = values.len() / 2;
     *values.select_nth_unstable_by(mid, f32::total_cmp).1
 }

@@ -16,6 +16,7 @@
 use glam::{IVec3, Vec3};
 
 use crate::reconstruct::principal_spreads;
+use crate::reconstruct::radii::median;
 use crate::spatial::PointIndex;
 
 /// Offsets of the 26 neighbours and the centre, indexed `(dx+1)·9 + (dy+1)·3
@@ -200,11 +201,7 @@ pub(super) fn crown_linearity(candidates: &[Vec3], radius_m: f32) -> Option<f32>
             (first > 0.0).then(|| (1.0 - (second / first).powi(2)) as f32)
         })
         .collect();
-    if linearity.is_empty() {
-        return None;
-    }
-    let mid = linearity.len() / 2;
-    Some(*linearity.select_nth_unstable_by(mid, f32::total_cmp).1)
+    (!linearity.is_empty()).then(|| median(&mut linearity))
 }
 
 fn offsets() -> impl Iterator<Item = IVec3> {
