@@ -271,15 +271,17 @@ fn measure_crown(
     let mut crown = metrics::Crown::measure(skeleton, tree);
     if mode == Mode::Airborne {
         // A sparse scan from above rarely hits the apex itself.
-        let gap = metrics::apex_gap_m(&tree.points);
+        let apex = metrics::apex_gap(&tree.points);
         notes.push(format!(
-            "height: highest return {:.2} m plus {gap:.2} m expected gap to the apex \
+            "height: highest return {:.2} m plus {:.2} m expected gap to the apex of a {} top \
              (± {:.2} m, one standard deviation: the gap of one tree scatters about its \
              expectation)",
             crown.height_m,
-            metrics::APEX_GAP_SCATTER * gap
+            apex.gap_m,
+            apex.top.name(),
+            apex.scatter_m()
         ));
-        crown.height_m += gap;
+        crown.height_m += apex.gap_m;
     }
     crown
 }

@@ -34,6 +34,7 @@ use glam::{Vec2, Vec3};
 
 use super::Params;
 use crate::reconstruct::ground::Terrain;
+use crate::reconstruct::metrics::{COLUMNAR_SPREAD_M, horizontal_spread};
 use crate::spatial::PointIndex;
 
 /// Which of the paper's equations placed the trunk.
@@ -450,11 +451,6 @@ fn footprint_centre(tree: &[Vec3]) -> Vec2 {
     sum / cells.len().max(1) as f32
 }
 
-/// Horizontal spread (RMS distance from the points' mean) under which a
-/// crown counts as columnar, in metres: the synthetic Lombardy poplars'
-/// crowns spread 1.0–1.6 m, the oaks', birches' and pines' 2.0–6.4 m.
-const COLUMNAR_SPREAD_M: f32 = 1.8;
-
 /// Share of the tree points, lowest first, that make up a crown's lowest
 /// layer in [`lowest_layer_centre`].
 const LOWEST_LAYER_SHARE: usize = 10;
@@ -469,14 +465,7 @@ const LOWEST_LAYER_SHARE: usize = 10;
 /// off on synthetic poplars whose lowest layer is 0.3–0.4 m off). A broad
 /// crown's lowest layer is one or two long limbs on one side, metres off.
 fn lowest_layer_centre(tree: &[Vec3], footprint_xy: Vec2) -> Vec2 {
-    let n = tree.len().max(1) as f32;
-    let mean = tree.iter().map(|p| p.truncate()).sum::<Vec2>() / n;
-    let spread = (tree
-        .iter()
-        .map(|p| p.truncate().distance_squared(mean))
-        .sum::<f32>()
-        / n)
-        .sqrt();
+    let spread = horizontal_spread(tree);
     if spread >= COLUMNAR_SPREAD_M || tree.len() < LOWEST_LAYER_SHARE {
         return footprint_xy;
     }

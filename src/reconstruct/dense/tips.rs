@@ -16,7 +16,7 @@
 //! The second step, [`TipRule::expected_gap`], extends each thin tip by that
 //! median, with λ counted over the twig's last [`GAP_SPAN_BINS`] bin widths
 //! and the extension capped at [`MAX_GAP_BINS`] and [`MAX_GAP_M`]. The airborne pipeline does
-//! the same for the tree's height (`metrics::apex_gap_m`). Short laterals
+//! the same for the tree's height (`metrics::apex_gap`). Short laterals
 //! near a thick stem are left alone: most are patches of the stem's own
 //! bark, which have no end to extrapolate.
 
