@@ -19,6 +19,9 @@
 //! Plain synchronous code without IO. The z axis is assumed to point up and
 //! the cloud to hold one tree; inputs that break this assumption get a
 //! [`ReconstructError`] or a flagged best effort in [`Reconstruction::notes`].
+//! Both pipelines reject a cloud that is wide at the bottom and narrow at the
+//! top, and one whose thickest stem is near its top (module `upright`: a
+//! conifer or a columnar tree turned over is narrow at both ends).
 
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -34,6 +37,7 @@ mod error;
 pub mod ground;
 pub mod metrics;
 pub mod radii;
+mod upright;
 
 pub use error::ReconstructError;
 
@@ -374,11 +378,7 @@ fn check_width(points: &[Vec3]) -> Result<(), ReconstructError> {
 pub(crate) fn check_height<'a>(
     points: impl IntoIterator<Item = &'a Vec3>,
 ) -> Result<(), ReconstructError> {
-    let (low, high) = points
-        .into_iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p.z), hi.max(p.z))
-        });
+    let (low, high) = z_range(points);
     let height_m = high - low;
     if height_m > MAX_TREE_HEIGHT_M {
         return Err(ReconstructError::TooTall {
@@ -387,6 +387,15 @@ pub(crate) fn check_height<'a>(
         });
     }
     Ok(())
+}
+
+/// The lowest and highest `z` of `points` (infinities when there are none).
+pub(crate) fn z_range<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (f32, f32) {
+    points
+        .into_iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.z), hi.max(p.z))
+        })
 }
 
 /// Checks that the tree stands upright: the lowest part (the trunk) must be

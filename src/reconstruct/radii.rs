@@ -791,7 +791,7 @@ fn refine_circle(points: &[Vec2], start: Circle) -> Circle {
 }
 
 /// RMS distance of `points` to `circle`.
-fn circle_rms(points: &[Vec2], circle: Circle) -> f32 {
+pub(crate) fn circle_rms(points: &[Vec2], circle: Circle) -> f32 {
     let sum: f32 = points
         .iter()
         .map(|p| (p.distance(circle.centre) - circle.radius).powi(2))

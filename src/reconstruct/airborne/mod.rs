@@ -284,6 +284,7 @@ fn separated(
     }
     let split = split_ground(&finite);
     check_upright(&finite, &split)?;
+    super::upright::check_stands_on_its_trunk(&split.tree.points, STEM_LINK_M)?;
     notes.push(ground_note(&split));
     if split.tree.len() < MIN_TREE_POINTS {
         return Err(ReconstructError::NoTreeAboveGround {
@@ -459,6 +460,12 @@ fn ground_note(split: &GroundSplit) -> String {
         .unwrap_or_default();
     format!("ground: {} points {how}{slope}", split.ground.len())
 }
+
+/// Points closer than this (metres) belong to one piece of bark in the
+/// upside-down test of a terrestrial cloud sent to this pipeline
+/// ([`super::upright`]): such a cloud's points lie at most 0.08 m apart
+/// (`AutoThresholds::max_dense_spacing_m`), an AHN clip's 0.2–0.3 m.
+const STEM_LINK_M: f32 = 0.1;
 
 /// Rejects a clip whose terrain lies on top: an upside-down clip shows a
 /// flat surface covering the top of the cloud and none (or less) at its

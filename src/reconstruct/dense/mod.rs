@@ -64,6 +64,10 @@ mod twins;
 
 pub(crate) use simplify::point_segment_distance;
 
+/// Bark points closer than this many point spacings belong to one piece of
+/// bark in the upside-down test ([`super::upright`]).
+const STEM_LINK_SPACINGS: f32 = 4.0;
+
 /// Settings of the dense pipeline. Lengths left `None` scale with the
 /// cloud's median point spacing.
 #[derive(Debug, Clone, PartialEq)]
@@ -434,6 +438,7 @@ fn neighbour_graph(
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
     super::check_upright(&points, base_z, top_z)?;
+    super::upright::check_stands_on_its_trunk(&points, (STEM_LINK_SPACINGS * spacing).max(0.02))?;
     Ok(NeighbourGraph {
         points,
         edges,

@@ -1,0 +1,242 @@
+//! Whether a dense scan stands on its trunk or on its crown's top.
+//!
+//! The test on spreads ([`super::check_upright`]) compares how far
+//! the lowest and the highest tenth of the cloud spread sideways, which
+//! catches a broad crown turned over but not a conical, columnar or
+//! slender one: upside down, the narrow top of a pine or a poplar looks
+//! like a trunk. A terrestrial scan shows bark, so the stems themselves
+//! tell: a slice through the trunk is a ring of points around one thick
+//! axis, a slice just under the crown's top a scatter of twig rings a few
+//! centimetres across. So the thickest stem in a slice near each end is
+//! measured by a circle fit (the one of the DBH, [`robust_circle`]), and a
+//! cloud whose thick stem is at the top is rejected.
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+
+use crate::reconstruct::ReconstructError;
+use crate::reconstruct::radii::{circle_rms, robust_circle};
+
+/// Where the two slices lie, as shares of the cloud's height from its
+/// lowest (and from its highest) point: clear of the ground and the root
+/// flare at the bottom and of the very tip at the top, low enough on a
+/// 20 m tree (0.4–1.2 m) to cut the trunk below any crown.
+const SLICE_SHARE: (f32, f32) = (0.02, 0.06);
+
+/// Trees shorter than this are not tested: their slices are too thin to
+/// hold a ring.
+const MIN_HEIGHT_M: f32 = 2.0;
+
+/// A ring needs this many points on its circle, as the DBH fit does.
+const MIN_RING_POINTS: usize = 30;
+
+/// ... and they must cover at least this much of its circumference, in
+/// degrees, counted in [`ARC_BIN_DEG`] bins that hold a point: one side of a trunk, which a
+/// single scanner sees, but not the twigs of a whorl that cross a circle
+/// around the leader at a few places (on a clean synthetic pine, eight
+/// twigs over four of twelve sectors fitted a 1.2 m "stem").
+const MIN_ARC_DEG: u32 = 120;
+
+/// Width of the bins in which [`MIN_ARC_DEG`] is counted, in degrees.
+const ARC_BIN_DEG: u32 = 5;
+
+/// The largest stem radius searched for, in metres.
+const MAX_STEM_RADIUS_M: f32 = 1.5;
+
+/// A stem near the top must be at least this thick (radius, metres) to
+/// count as a trunk: thicker than any twig at a crown's top.
+const MIN_TRUNK_RADIUS_M: f32 = 0.05;
+
+/// ... and this many times thicker than any stem near the bottom.
+const THICKER_BY: f32 = 2.0;
+
+/// Rejects a cloud whose thickest stem is near its top (module docs).
+/// Points closer than `link_m` belong to one piece of bark: a few times the
+/// point spacing of a terrestrial scan. An airborne scan's points lie
+/// farther apart than any stem is thick, so no piece of it rings a stem
+/// and it passes.
+pub(crate) fn check_stands_on_its_trunk(
+    points: &[Vec3],
+    link_m: f32,
+) -> Result<(), ReconstructError> {
+    let (low, high) = super::z_range(points);
+    let height = high - low;
+    if height.is_nan() || height < MIN_HEIGHT_M {
+        return Ok(());
+    }
+    let (near, far) = (SLICE_SHARE.0 * height, SLICE_SHARE.1 * height);
+    let bottom = thickest_stem(&slice(points, low + near, low + far), link_m);
+    let top = thickest_stem(&slice(points, high - far, high - near), link_m);
+    if top >= MIN_TRUNK_RADIUS_M && top > THICKER_BY * bottom {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud looks upside down: a stem {:.0} cm thick stands {:.1}–{:.1} m below its \
+             top, and no stem near its bottom is half as thick ({:.0} cm at most)",
+            200.0 * top,
+            near,
+            far,
+            200.0 * bottom
+        )));
+    }
+    Ok(())
+}
+
+/// The points with `lo ≤ z ≤ hi`, seen from above.
+fn slice(points: &[Vec3], lo: f32, hi: f32) -> Vec<Vec2> {
+    points
+        .iter()
+        .filter(|p| (lo..=hi).contains(&p.z))
+        .map(|p| p.truncate())
+        .collect()
+}
+
+/// Radius of the thickest ring among the pieces of `slice` (points closer
+/// than `link` belong to one piece), 0 when no piece holds a ring.
+fn thickest_stem(slice: &[Vec2], link: f32) -> f32 {
+    pieces(slice, link)
+        .iter()
+        .filter(|piece| piece.len() >= MIN_RING_POINTS)
+        .filter_map(|piece| ring_radius(piece))
+        .fold(0.0, f32::max)
+}
+
+/// The radius of the circle that `piece` rings, if it is a ring: enough
+/// points on it, all round, close to the circle.
+fn ring_radius(piece: &[Vec2]) -> Option<f32> {
+    let (circle, inliers) = robust_circle(piece, MAX_STEM_RADIUS_M)?;
+    let ring = inliers.len() >= MIN_RING_POINTS
+        && arc_covered_deg(&inliers, circle.centre) >= MIN_ARC_DEG
+        && circle_rms(&inliers, circle) <= 0.25 * circle.radius;
+    ring.then_some(circle.radius)
+}
+
+/// How much of the circle around `centre` the `points` cover, in degrees:
+/// the number of [`ARC_BIN_DEG`] bins that hold a point, times the width.
+fn arc_covered_deg(points: &[Vec2], centre: Vec2) -> u32 {
+    const BINS: usize = (360 / ARC_BIN_DEG) as usize;
+    let mut seen = [false; BINS];
+    for p in points {
+        let d = *p - centre;
+        let turn = (d.y.atan2(d.x) / std::f32::consts::TAU).rem_euclid(1.0);
+        seen[((turn * BINS as f32) as usize).min(BINS - 1)] = true;
+    }
+    seen.iter().filter(|&&s| s).count() as u32 * ARC_BIN_DEG
+}
+
+/// The connected pieces of `points` when points closer than `link` are
+/// joined: union–find over a grid of `link` cells.
+fn pieces(points: &[Vec2], link: f32) -> Vec<Vec<Vec2>> {
+    let cell = |p: Vec2| {
+        let c = (p / link).floor();
+        (c.x as i64, c.y as i64)
+    };
+    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    for (i, &p) in points.iter().enumerate() {
+        grid.entry(cell(p)).or_default().push(i);
+    }
+    let mut parent: Vec<usize> = (0..points.len()).collect();
+    for (i, &p) in points.iter().enumerate() {
+        let (cx, cy) = cell(p);
+        for (dx, dy) in [(0, 0), (1, -1), (1, 0), (1, 1), (0, 1)] {
+            for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
+                if j != i && points[j].distance(p) < link {
+                    union(&mut parent, i, j);
+                }
+            }
+        }
+    }
+    let mut by_root: HashMap<usize, Vec<Vec2>> = HashMap::new();
+    for (i, &p) in points.iter().enumerate() {
+        let root = find(&mut parent, i);
+        by_root.entry(root).or_default().push(p);
+    }
+    by_root.into_values().collect()
+}
+
+fn find(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+fn union(parent: &mut [usize], a: usize, b: usize) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points on a vertical cylinder's bark from `z0` to `z1`.
+    fn stem(centre: Vec2, radius: f32, z0: f32, z1: f32, n: usize) -> Vec<Vec3> {
+        (0..n)
+            .map(|i| {
+                let a = i as f32 * 2.399_963; // golden angle
+                let z = z0 + (z1 - z0) * (i as f32 + 0.5) / n as f32;
+                (centre + radius * Vec2::new(a.cos(), a.sin())).extend(z)
+            })
+            .collect()
+    }
+
+    /// A 10 m column: a 20 cm trunk up to 3 m, then twigs of 1 cm radius
+    /// ringing it up to the top.
+    fn column() -> Vec<Vec3> {
+        let mut points = stem(Vec2::ZERO, 0.2, 0.0, 3.0, 3000);
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let at = 0.5 * Vec2::new(a.cos(), a.sin());
+            points.extend(stem(at, 0.01, 3.0, 10.0, 1500));
+        }
+        points
+    }
+
+    #[test]
+    fn a_column_on_its_trunk_passes() {
+        assert_eq!(check_stands_on_its_trunk(&column(), 0.04), Ok(()));
+    }
+
+    #[test]
+    fn a_column_on_its_top_is_upside_down() {
+        let flipped: Vec<Vec3> = column().iter().map(|p| p.with_z(-p.z)).collect();
+        let err = check_stands_on_its_trunk(&flipped, 0.04).unwrap_err();
+        assert!(err.to_string().contains("upside down"), "{err}");
+        assert!(err.to_string().contains("z axis points up"), "{err}");
+    }
+
+    /// A conifer's top: a 2 cm leader with a whorl of eight twigs that
+    /// radiate and bend up through the top slice, crossing any circle
+    /// around the leader at eight places.
+    #[test]
+    fn a_whorl_round_the_leader_is_no_stem() {
+        let mut points = column();
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::TAU / 8.0;
+            let out = Vec2::new(a.cos(), a.sin());
+            points.extend((0..400).map(|i| {
+                let t = i as f32 / 400.0;
+                let jitter = 0.004 * Vec2::new((t * 97.0).sin(), (t * 61.0).sin());
+                (out * 1.2 * t + jitter).extend(9.45 + 0.3 * t)
+            }));
+        }
+        assert_eq!(check_stands_on_its_trunk(&points, 0.04), Ok(()));
+    }
+
+    #[test]
+    fn twigs_are_pieces_of_their_own_and_a_ring_is_one() {
+        let mut slice: Vec<Vec2> = stem(Vec2::ZERO, 0.2, 0.0, 1.0, 200)
+            .iter()
+            .map(|p| p.truncate())
+            .collect();
+        slice.push(Vec2::new(1.0, 0.0));
+        slice.push(Vec2::new(1.01, 0.0));
+        let mut sizes: Vec<usize> = pieces(&slice, 0.04).iter().map(Vec::len).collect();
+        sizes.sort_unstable();
+        assert_eq!(sizes, vec![2, 200]);
+        assert!((thickest_stem(&slice, 0.04) - 0.2).abs() < 0.01);
+    }
+}
