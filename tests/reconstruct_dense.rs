@@ -279,6 +279,26 @@ fn a_lying_or_upside_down_tree_is_an_error() {
     assert!(e.contains("upside down"), "{e}");
 }
 
+/// A tree tilted by 40° reconstructs, with a note that the trunk leans and
+/// that silva takes z as up; upright, the same scan gets no such note.
+#[test]
+fn a_tilted_tree_is_a_flagged_best_effort() {
+    let pts = scan(&y_tree(), 0.02, 9);
+    let leans = |tree: &silva::reconstruct::Reconstruction| {
+        tree.notes.iter().find(|n| n.contains("leans")).cloned()
+    };
+    let upright = reconstruct(&PointCloud::from_points(OFFSET, pts.clone()), &dense()).unwrap();
+    assert_eq!(leans(&upright), None);
+    let (sin, cos) = 40f32.to_radians().sin_cos();
+    let tilted = pts
+        .iter()
+        .map(|p| Vec3::new(p.x, cos * p.y - sin * p.z, sin * p.y + cos * p.z))
+        .collect();
+    let tree = reconstruct(&PointCloud::from_points(OFFSET, tilted), &dense()).unwrap();
+    let note = leans(&tree).expect("a lean note");
+    assert!(note.contains("z axis points up"), "{note}");
+}
+
 /// A Weber–Penn tree of every species, scanned from four positions and
 /// turned upside down, is rejected in the automatic mode (the pine's then
 /// goes to the airborne pipeline, whose trunk test sees no trunk at the
