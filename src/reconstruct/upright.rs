@@ -16,6 +16,7 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 
 use crate::reconstruct::ReconstructError;
+use crate::reconstruct::dense::UnionFind;
 use crate::reconstruct::radii::{circle_rms, robust_circle};
 
 /// Where the two slices lie, as shares of the cloud's height from its
@@ -130,42 +131,26 @@ fn pieces(points: &[Vec2], link: f32) -> Vec<Vec<Vec2>> {
         let c = (p / link).floor();
         (c.x as i64, c.y as i64)
     };
-    let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+    let mut grid: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
     for (i, &p) in points.iter().enumerate() {
-        grid.entry(cell(p)).or_default().push(i);
+        grid.entry(cell(p)).or_default().push(i as u32);
     }
-    let mut parent: Vec<usize> = (0..points.len()).collect();
+    let mut sets = UnionFind::new(points.len());
     for (i, &p) in points.iter().enumerate() {
         let (cx, cy) = cell(p);
         for (dx, dy) in [(0, 0), (1, -1), (1, 0), (1, 1), (0, 1)] {
             for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
-                if j != i && points[j].distance(p) < link {
-                    union(&mut parent, i, j);
+                if points[j as usize].distance(p) < link {
+                    sets.union(i as u32, j);
                 }
             }
         }
     }
-    let mut by_root: HashMap<usize, Vec<Vec2>> = HashMap::new();
+    let mut by_set: HashMap<u32, Vec<Vec2>> = HashMap::new();
     for (i, &p) in points.iter().enumerate() {
-        let root = find(&mut parent, i);
-        by_root.entry(root).or_default().push(p);
+        by_set.entry(sets.find(i as u32)).or_default().push(p);
     }
-    by_root.into_values().collect()
-}
-
-fn find(parent: &mut [usize], mut i: usize) -> usize {
-    while parent[i] != i {
-        parent[i] = parent[parent[i]];
-        i = parent[i];
-    }
-    i
-}
-
-fn union(parent: &mut [usize], a: usize, b: usize) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra.max(rb)] = ra.min(rb);
-    }
+    by_set.into_values().collect()
 }
 
 #[cfg(test)]

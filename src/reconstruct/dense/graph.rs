@@ -104,14 +104,14 @@ pub(super) fn knn_edges(
 
 /// Disjoint-set forest with path halving and union by size.
 #[derive(Clone)]
-pub(super) struct UnionFind {
+pub(crate) struct UnionFind {
     parent: Vec<u32>,
     size: Vec<u32>,
 }
 
 impl UnionFind {
     /// `n` singleton sets.
-    pub(super) fn new(n: usize) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         Self {
             parent: (0..n as u32).collect(),
             size: vec![1; n],
@@ -119,7 +119,7 @@ impl UnionFind {
     }
 
     /// Representative of `v`'s set.
-    pub(super) fn find(&mut self, mut v: u32) -> u32 {
+    pub(crate) fn find(&mut self, mut v: u32) -> u32 {
         while self.parent[v as usize] != v {
             let grand = self.parent[self.parent[v as usize] as usize];
             self.parent[v as usize] = grand;
@@ -129,7 +129,7 @@ impl UnionFind {
     }
 
     /// Joins the sets of `a` and `b`.
-    pub(super) fn union(&mut self, a: u32, b: u32) {
+    pub(crate) fn union(&mut self, a: u32, b: u32) {
         let (a, b) = (self.find(a), self.find(b));
         if a == b {
             return;

@@ -62,6 +62,7 @@ mod skeletonize;
 mod tips;
 mod twins;
 
+pub(crate) use graph::UnionFind;
 pub(crate) use simplify::point_segment_distance;
 
 /// Bark points closer than this many point spacings belong to one piece of
