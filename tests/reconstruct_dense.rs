@@ -299,6 +299,23 @@ fn a_tilted_tree_is_a_flagged_best_effort() {
     assert!(note.contains("z axis points up"), "{note}");
 }
 
+/// An upright oak whose lowest branches spread into the second tenth of its
+/// height is not flagged as leaning: the centroid of that tenth, which the
+/// lean was once measured by, sits 1 m off the trunk and read as 31°.
+#[test]
+fn low_branches_are_no_lean() {
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Oak),
+        20,
+        silva::Anchor::default(),
+    );
+    let scan = simulate_tls(&truth, &TlsOptions::default(), 20);
+    let tree = reconstruct(&scan, &Options::default()).unwrap();
+    let leans: Vec<&String> = tree.notes.iter().filter(|n| n.contains("leans")).collect();
+    assert!(leans.is_empty(), "{leans:?}");
+}
+
 /// A Weber–Penn tree of every species, scanned from four positions and
 /// turned upside down, is rejected in the automatic mode (the pine's then
 /// goes to the airborne pipeline, whose trunk test sees no trunk at the

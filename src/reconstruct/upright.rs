@@ -25,6 +25,12 @@ use crate::reconstruct::radii::{circle_rms, robust_circle};
 /// 20 m tree (0.4–1.2 m) to cut the trunk below any crown.
 const SLICE_SHARE: (f32, f32) = (0.02, 0.06);
 
+/// A piece whose points lean more than this from vertical (degrees) is
+/// measured as it stands, without [`upright_section`]: a trunk leaning so far
+/// is flagged by the lean test ([`super::check_upright`]), and the lean fitted to
+/// a branch that crosses the slice sideways means nothing.
+const MAX_SHEAR_DEG: f32 = 45.0;
+
 /// Trees shorter than this are not tested: their slices are too thin to
 /// hold a ring.
 const MIN_HEIGHT_M: f32 = 2.0;
@@ -82,23 +88,66 @@ pub(crate) fn check_stands_on_its_trunk(
     Ok(())
 }
 
-/// The points with `lo ≤ z ≤ hi`, seen from above.
-fn slice(points: &[Vec3], lo: f32, hi: f32) -> Vec<Vec2> {
+/// The points with `lo ≤ z ≤ hi`.
+fn slice(points: &[Vec3], lo: f32, hi: f32) -> Vec<Vec3> {
     points
         .iter()
+        .copied()
         .filter(|p| (lo..=hi).contains(&p.z))
-        .map(|p| p.truncate())
         .collect()
 }
 
 /// Radius of the thickest ring among the pieces of `slice` (points closer
-/// than `link` belong to one piece), 0 when no piece holds a ring.
-fn thickest_stem(slice: &[Vec2], link: f32) -> f32 {
+/// than `link` seen from above belong to one piece), 0 when no piece holds
+/// a ring.
+fn thickest_stem(slice: &[Vec3], link: f32) -> f32 {
     pieces(slice, link)
         .iter()
         .filter(|piece| piece.len() >= MIN_RING_POINTS)
-        .filter_map(|piece| ring_radius(piece))
+        .filter_map(|piece| ring_radius(&upright_section(piece)))
         .fold(0.0, f32::max)
+}
+
+/// The piece seen along its own axis rather than from above: each point
+/// moved sideways by the piece's lean (the least-squares slope of `x` and
+/// `y` against `z`) times its height in the slice. Seen from above, a slice
+/// as tall as a trunk is thick smears a leaning trunk into a crescent:
+/// tree13's 20 cm trunk leans 22° in its bottom slice (0.4 m), which smears
+/// it by 0.16 m and left 23 points on any circle; along its axis 65 points
+/// ring it over 130°.
+fn upright_section(piece: &[Vec3]) -> Vec<Vec2> {
+    let slope = lean(piece);
+    let slope = if slope.length() <= MAX_SHEAR_DEG.to_radians().tan() {
+        slope
+    } else {
+        Vec2::ZERO
+    };
+    let mean_z = piece.iter().map(|p| p.z).sum::<f32>() / piece.len() as f32;
+    piece
+        .iter()
+        .map(|p| p.truncate() - slope * (p.z - mean_z))
+        .collect()
+}
+
+/// How far the points drift sideways per metre of height: the
+/// least-squares slope of their `x` and `y` against `z` (zero when they
+/// span no height or the slope is not finite). For the points of a stem,
+/// the tangent of its lean; `atan` of the length gives the angle from
+/// vertical.
+pub(crate) fn lean(points: &[Vec3]) -> Vec2 {
+    let mean = points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32;
+    let (mut zz, mut xz) = (0.0, Vec2::ZERO);
+    for p in points {
+        let d = *p - mean;
+        zz += d.z * d.z;
+        xz += d.truncate() * d.z;
+    }
+    let slope = xz / zz;
+    if zz > 0.0 && slope.is_finite() {
+        slope
+    } else {
+        Vec2::ZERO
+    }
 }
 
 /// The radius of the circle that `piece` rings, if it is a ring: enough
@@ -124,29 +173,30 @@ fn arc_covered_deg(points: &[Vec2], centre: Vec2) -> u32 {
     seen.iter().filter(|&&s| s).count() as u32 * ARC_BIN_DEG
 }
 
-/// The connected pieces of `points` when points closer than `link` are
-/// joined: union–find over a grid of `link` cells.
-fn pieces(points: &[Vec2], link: f32) -> Vec<Vec<Vec2>> {
+/// The connected pieces of `points` when points closer than `link` seen from
+/// above are joined: union–find over a grid of `link` cells.
+fn pieces(points: &[Vec3], link: f32) -> Vec<Vec<Vec3>> {
+    let flat: Vec<Vec2> = points.iter().map(|p| p.truncate()).collect();
     let cell = |p: Vec2| {
         let c = (p / link).floor();
         (c.x as i64, c.y as i64)
     };
     let mut grid: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
-    for (i, &p) in points.iter().enumerate() {
+    for (i, &p) in flat.iter().enumerate() {
         grid.entry(cell(p)).or_default().push(i as u32);
     }
     let mut sets = UnionFind::new(points.len());
-    for (i, &p) in points.iter().enumerate() {
+    for (i, &p) in flat.iter().enumerate() {
         let (cx, cy) = cell(p);
         for (dx, dy) in [(0, 0), (1, -1), (1, 0), (1, 1), (0, 1)] {
             for &j in grid.get(&(cx + dx, cy + dy)).into_iter().flatten() {
-                if points[j as usize].distance(p) < link {
+                if flat[j as usize].distance(p) < link {
                     sets.union(i as u32, j);
                 }
             }
         }
     }
-    let mut by_set: HashMap<u32, Vec<Vec2>> = HashMap::new();
+    let mut by_set: HashMap<u32, Vec<Vec3>> = HashMap::new();
     for (i, &p) in points.iter().enumerate() {
         by_set.entry(sets.find(i as u32)).or_default().push(p);
     }
@@ -171,7 +221,12 @@ mod tests {
     /// A 10 m column: a 20 cm trunk up to 3 m, then twigs of 1 cm radius
     /// ringing it up to the top.
     fn column() -> Vec<Vec3> {
-        let mut points = stem(Vec2::ZERO, 0.2, 0.0, 3.0, 3000);
+        column_with_bark_points(3000)
+    }
+
+    /// [`column`] with `n` points on the trunk's bark.
+    fn column_with_bark_points(n: usize) -> Vec<Vec3> {
+        let mut points = stem(Vec2::ZERO, 0.2, 0.0, 3.0, n);
         for k in 0..8 {
             let a = k as f32 * std::f32::consts::TAU / 8.0;
             let at = 0.5 * Vec2::new(a.cos(), a.sin());
@@ -191,6 +246,34 @@ mod tests {
         let err = check_stands_on_its_trunk(&flipped, 0.04).unwrap_err();
         assert!(err.to_string().contains("upside down"), "{err}");
         assert!(err.to_string().contains("z axis points up"), "{err}");
+    }
+
+    /// The column leaning 20° (sheared along `x`), as tree13's trunk does,
+    /// and as sparsely scanned: 40 points in the 0.4 m bottom slice.
+    fn leaning_column() -> Vec<Vec3> {
+        let shear = 20f32.to_radians().tan();
+        column_with_bark_points(300)
+            .iter()
+            .map(|p| *p + Vec3::X * shear * p.z)
+            .collect()
+    }
+
+    #[test]
+    fn a_leaning_column_on_its_top_is_upside_down() {
+        let leaning = leaning_column();
+        assert_eq!(check_stands_on_its_trunk(&leaning, 0.1), Ok(()));
+        let flipped: Vec<Vec3> = leaning.iter().map(|p| p.with_z(-p.z)).collect();
+        let err = check_stands_on_its_trunk(&flipped, 0.1).unwrap_err();
+        assert!(err.to_string().contains("upside down"), "{err}");
+    }
+
+    #[test]
+    fn a_leaning_trunk_is_measured_along_its_axis() {
+        let slice = slice(&leaning_column(), 0.2, 0.6);
+        let seen_from_above: Vec<Vec2> = slice.iter().map(|p| p.truncate()).collect();
+        assert_eq!(ring_radius(&seen_from_above), None);
+        let radius = thickest_stem(&slice, 0.1);
+        assert!((radius - 0.2).abs() < 0.01, "{radius}");
     }
 
     /// A conifer's top: a 2 cm leader with a whorl of eight twigs that
@@ -213,12 +296,9 @@ mod tests {
 
     #[test]
     fn twigs_are_pieces_of_their_own_and_a_ring_is_one() {
-        let mut slice: Vec<Vec2> = stem(Vec2::ZERO, 0.2, 0.0, 1.0, 200)
-            .iter()
-            .map(|p| p.truncate())
-            .collect();
-        slice.push(Vec2::new(1.0, 0.0));
-        slice.push(Vec2::new(1.01, 0.0));
+        let mut slice = stem(Vec2::ZERO, 0.2, 0.0, 1.0, 200);
+        slice.push(Vec3::new(1.0, 0.0, 0.5));
+        slice.push(Vec3::new(1.01, 0.0, 0.5));
         let mut sizes: Vec<usize> = pieces(&slice, 0.04).iter().map(Vec::len).collect();
         sizes.sort_unstable();
         assert_eq!(sizes, vec![2, 200]);
