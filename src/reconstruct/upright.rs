@@ -26,10 +26,9 @@ use crate::reconstruct::radii::{circle_rms, robust_circle};
 const SLICE_SHARE: (f32, f32) = (0.02, 0.06);
 
 /// A piece whose points lean more than this from vertical (degrees) is
-/// measured as it stands, without [`upright_section`]: a trunk leaning so far
-/// is flagged by the lean test ([`super::check_upright`]), and the lean fitted to
-/// a branch that crosses the slice sideways means nothing.
-const MAX_SHEAR_DEG: f32 = 45.0;
+/// measured as it stands, without [`upright_section`]: the lean fitted to a
+/// branch that crosses the slice sideways means nothing.
+const MAX_AXIS_LEAN_DEG: f32 = 70.0;
 
 /// Trees shorter than this are not tested: their slices are too thin to
 /// hold a ring.
@@ -108,25 +107,55 @@ fn thickest_stem(slice: &[Vec3], link: f32) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// The piece seen along its own axis rather than from above: each point
-/// moved sideways by the piece's lean (the least-squares slope of `x` and
-/// `y` against `z`) times its height in the slice. Seen from above, a slice
-/// as tall as a trunk is thick smears a leaning trunk into a crescent:
-/// tree13's 20 cm trunk leans 22° in its bottom slice (0.4 m), which smears
-/// it by 0.16 m and left 23 points on any circle; along its axis 65 points
-/// ring it over 130°.
+/// The piece seen along its own axis rather than from above: projected
+/// onto the plane across the axis that [`axis_slope`] gives. Seen from
+/// above, a slice as tall as a trunk is thick smears a leaning trunk into a
+/// crescent: tree13's 20 cm trunk leans 22° in its bottom slice (0.4 m),
+/// which smears it by 0.16 m and left 23 points on any circle; along its
+/// axis 65 points ring it over 130°. Even a thin slice of a trunk leaning
+/// 60° is an ellipse twice as long as wide; along the axis it is a circle.
 fn upright_section(piece: &[Vec3]) -> Vec<Vec2> {
-    let slope = lean(piece);
-    let slope = if slope.length() <= MAX_SHEAR_DEG.to_radians().tan() {
+    let slope = axis_slope(piece);
+    let slope = if slope.length() <= MAX_AXIS_LEAN_DEG.to_radians().tan() {
         slope
     } else {
         Vec2::ZERO
     };
-    let mean_z = piece.iter().map(|p| p.z).sum::<f32>() / piece.len() as f32;
+    let (across, side) = slope.extend(1.0).normalize().any_orthonormal_pair();
     piece
         .iter()
-        .map(|p| p.truncate() - slope * (p.z - mean_z))
+        .map(|p| Vec2::new(p.dot(across), p.dot(side)))
         .collect()
+}
+
+/// Thin layers in which [`axis_slope`] takes the centroids of a piece.
+const AXIS_LAYERS: usize = 4;
+
+/// How far a stem's axis drifts sideways per metre of height, from the
+/// centroids of [`AXIS_LAYERS`] thin layers of its bark points (their
+/// least-squares slope against height). The slope of the points
+/// themselves ([`lean`]) mixes in the bark's own tilt across a leaning
+/// stem: in a slice 0.4 m tall through a 20 cm trunk leaning 40°, it came
+/// out near 4°.
+fn axis_slope(piece: &[Vec3]) -> Vec2 {
+    let (low, high) = super::z_range(piece);
+    let layer = (high - low) / AXIS_LAYERS as f32;
+    let mut sums = [(Vec3::ZERO, 0usize); AXIS_LAYERS];
+    for p in piece {
+        let k = (((p.z - low) / layer) as usize).min(AXIS_LAYERS - 1);
+        sums[k].0 += *p;
+        sums[k].1 += 1;
+    }
+    let centroids: Vec<Vec3> = sums
+        .iter()
+        .filter(|(_, n)| *n > 0)
+        .map(|(sum, n)| *sum / *n as f32)
+        .collect();
+    if layer > 0.0 && centroids.len() >= 3 {
+        lean(&centroids)
+    } else {
+        Vec2::ZERO
+    }
 }
 
 /// How far the points drift sideways per metre of height: the
@@ -248,32 +277,45 @@ mod tests {
         assert!(err.to_string().contains("z axis points up"), "{err}");
     }
 
-    /// The column leaning 20° (sheared along `x`), as tree13's trunk does,
-    /// and as sparsely scanned: 40 points in the 0.4 m bottom slice.
-    fn leaning_column() -> Vec<Vec3> {
-        let shear = 20f32.to_radians().tan();
-        column_with_bark_points(300)
+    /// [`check_stands_on_its_trunk`]'s link on tree13 (four times its
+    /// median point spacing of 0.054 m).
+    const TREE13_LINK_M: f32 = 0.216;
+
+    /// The column leaning `deg` (turned about the `x` axis), its bark as
+    /// sparsely scanned as tree13's (points about 5 cm apart, joined into
+    /// pieces at four spacings, [`TREE13_LINK_M`]).
+    fn leaning_column(deg: f32) -> Vec<Vec3> {
+        let turn = glam::Quat::from_rotation_x(deg.to_radians());
+        column_with_bark_points(1200)
             .iter()
-            .map(|p| *p + Vec3::X * shear * p.z)
+            .map(|&p| turn * p)
             .collect()
     }
 
     #[test]
     fn a_leaning_column_on_its_top_is_upside_down() {
-        let leaning = leaning_column();
-        assert_eq!(check_stands_on_its_trunk(&leaning, 0.1), Ok(()));
-        let flipped: Vec<Vec3> = leaning.iter().map(|p| p.with_z(-p.z)).collect();
-        let err = check_stands_on_its_trunk(&flipped, 0.1).unwrap_err();
-        assert!(err.to_string().contains("upside down"), "{err}");
+        // Not 60°: the top slice of this 5 m tall cloud (0.1–0.3 m below
+        // its top) then cuts only the slanted end of the trunk.
+        for deg in [20.0, 40.0] {
+            let leaning = leaning_column(deg);
+            assert_eq!(
+                check_stands_on_its_trunk(&leaning, TREE13_LINK_M),
+                Ok(()),
+                "{deg}°"
+            );
+            let flipped: Vec<Vec3> = leaning.iter().map(|p| p.with_z(-p.z)).collect();
+            let err = check_stands_on_its_trunk(&flipped, TREE13_LINK_M).unwrap_err();
+            assert!(err.to_string().contains("upside down"), "{deg}°: {err}");
+        }
     }
 
     #[test]
     fn a_leaning_trunk_is_measured_along_its_axis() {
-        let slice = slice(&leaning_column(), 0.2, 0.6);
-        let seen_from_above: Vec<Vec2> = slice.iter().map(|p| p.truncate()).collect();
-        assert_eq!(ring_radius(&seen_from_above), None);
-        let radius = thickest_stem(&slice, 0.1);
-        assert!((radius - 0.2).abs() < 0.01, "{radius}");
+        for deg in [20.0, 40.0, 60.0] {
+            let slice = slice(&leaning_column(deg), 0.2, 0.6);
+            let radius = thickest_stem(&slice, TREE13_LINK_M);
+            assert!((radius - 0.2).abs() < 0.01, "{deg}°: {radius}");
+        }
     }
 
     /// A conifer's top: a 2 cm leader with a whorl of eight twigs that
