@@ -110,10 +110,11 @@ fn thickest_stem(slice: &[Vec3], link: f32) -> f32 {
 /// The piece seen along its own axis rather than from above: projected
 /// onto the plane across the axis that [`axis_slope`] gives. Seen from
 /// above, a slice as tall as a trunk is thick smears a leaning trunk into a
-/// crescent: tree13's 20 cm trunk leans 22° in its bottom slice (0.4 m),
-/// which smears it by 0.16 m and left 23 points on any circle; along its
-/// axis 65 points ring it over 130°. Even a thin slice of a trunk leaning
-/// 60° is an ellipse twice as long as wide; along the axis it is a circle.
+/// crescent: tree13's trunk (radius about 20 cm) leans 22° in its bottom
+/// slice (0.4 m), which smears it by 0.16 m, and seen from above no circle
+/// held 30 of its points; seen along its axis it rings, so tree13 turned
+/// over is rejected. Even a thin slice of a trunk leaning 60° is an ellipse
+/// twice as long as wide; along the axis it is a circle.
 fn upright_section(piece: &[Vec3]) -> Vec<Vec2> {
     let slope = axis_slope(piece);
     let slope = if slope.length() <= MAX_AXIS_LEAN_DEG.to_radians().tan() {
