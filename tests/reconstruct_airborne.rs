@@ -653,3 +653,41 @@ fn bare_leaf_off_crowns_are_not_contracted() {
         "{notes:?}"
     );
 }
+
+/// A clip cut without its ground and turned over (here by dropping the
+/// returns of class 2) has no terrain to tell which way is up; its crown's
+/// top, hit all round and most, now lies at the bottom, and the
+/// reconstruction says so. Upright, the same clips get no such note. (Pines,
+/// whose crowns reach down, are often not flagged: `upright::seen_from_below`.)
+#[test]
+fn a_clip_without_ground_turned_over_is_flagged() {
+    for (species, seed) in [(Species::Oak, 4), (Species::Birch, 5), (Species::Poplar, 6)] {
+        let opts = AlsOptions {
+            classify_ground: true,
+            ..AlsOptions::default()
+        };
+        let cloud = simulate_als(&truth(species, seed), &opts, seed);
+        let classes = cloud.classification.as_ref().expect("labels");
+        let tree: Vec<Vec3> = cloud
+            .points
+            .iter()
+            .zip(classes)
+            .filter(|&(_, &c)| c != CLASS_GROUND)
+            .map(|(p, _)| *p)
+            .collect();
+        let turned: Vec<Vec3> = tree.iter().map(|p| p.with_z(-p.z)).collect();
+        let flagged = |points: Vec<Vec3>| {
+            let result = reconstruct(
+                &PointCloud::from_points(cloud.offset, points),
+                &Params::default(),
+            )
+            .expect("a best effort");
+            result
+                .notes
+                .iter()
+                .any(|n| n.contains("may be upside down"))
+        };
+        assert!(!flagged(tree), "{species:?} {seed} upright");
+        assert!(flagged(turned), "{species:?} {seed} turned over");
+    }
+}

@@ -10,6 +10,13 @@
 //! centimetres across. So the thickest stem in a slice near each end is
 //! measured by a circle fit (the one of the DBH, [`robust_circle`]), and a
 //! cloud whose thick stem is at the top is rejected.
+//!
+//! An airborne clip shows no bark, and one cut without its ground shows no
+//! terrain either (the ground test of the airborne pipeline then has nothing
+//! to go on). But the scanner looks down: the crown's top is hit all round
+//! and more than any other part, the trunk and the crown's underside hardly
+//! at all. [`seen_from_below`] flags a clip whose lowest tenth is the one
+//! hit all round and most.
 
 use std::collections::HashMap;
 
@@ -17,7 +24,7 @@ use glam::{Vec2, Vec3};
 
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
-use crate::reconstruct::radii::{circle_rms, robust_circle};
+use crate::reconstruct::radii::{circle_rms, median, robust_circle};
 
 /// Where the two slices lie, as shares of the cloud's height from its
 /// lowest (and from its highest) point: clear of the ground and the root
@@ -85,6 +92,90 @@ pub(crate) fn check_stands_on_its_trunk(
         )));
     }
     Ok(())
+}
+
+/// [`seen_from_below`] compares the lowest and the highest tenth of the
+/// clip's height.
+const END_SHARE: f32 = 0.1;
+
+/// Directions around an end's centroid are counted in sectors this wide
+/// (degrees): a sector holds a point or not.
+const SECTOR_DEG: u32 = 10;
+
+/// A clip is flagged when its lowest tenth covers at least this share of
+/// the sectors more than its highest tenth does…
+const MORE_ROUND_BY: f32 = 0.1;
+
+/// …and holds at least this many times as many points…
+const MORE_POINTS_BY: f32 = 2.0;
+
+/// …and spreads at least this far sideways ([`median_spread`], metres):
+/// wider than a trunk, which a terrestrial scan too sparse for the dense
+/// pipeline also shows all round and most. On 20 such scans (`silva synth
+/// --scan tls --density 40`, seeds 1–20) the lowest tenth spread 0.15–0.37
+/// m; the highest tenth of the 48 airborne clips below 0.34–0.37 m on three
+/// leaf-off poplars and 0.51 m or more on the others. (The RMS spread of an
+/// oak's lowest tenth reached 1.32 m: a few twigs of its lowest limbs.)
+const MIN_CROWN_TOP_SPREAD_M: f32 = 0.45;
+
+/// A note when an airborne clip without ground looks scanned from below:
+/// its lowest tenth is hit all round, more often than its highest, and
+/// spreads like a crown's top (see the module docs; silva assumes the z
+/// axis points up). On 48 synthetic AHN-like clips (`silva synth --scan
+/// als`, seeds 1–24, leaf-off and leaf-on, the ground cut off at 0.5 m
+/// above the 1st percentile of z) `silva reconstruct` flags none upright
+/// and 31 turned over (the misses are mostly pines, whose crowns reach
+/// down, and narrow poplars); ahn3_delft and tiny are flagged turned by
+/// 90°, 135° and 180°, not at 0°, 20° or 45°.
+pub(crate) fn seen_from_below(points: &[Vec3]) -> Option<String> {
+    let (low, high) = super::z_range(points);
+    let band = END_SHARE * (high - low);
+    let bottom = slice(points, low, low + band);
+    let top = slice(points, high - band, high);
+    if bottom.is_empty() || top.is_empty() {
+        return None;
+    }
+    let (bottom_round, top_round) = (round_share(&bottom), round_share(&top));
+    let flagged = bottom_round >= top_round + MORE_ROUND_BY
+        && bottom.len() as f32 >= MORE_POINTS_BY * top.len() as f32
+        && median_spread(&bottom) >= MIN_CROWN_TOP_SPREAD_M;
+    flagged.then(|| {
+        format!(
+            "the cloud may be upside down: its lowest tenth holds {} points seen from {:.0} % \
+             of the directions around it, its highest tenth {} points from {:.0} %, while an \
+             airborne scan hits a crown's top most and all round (silva assumes the z axis \
+             points up)",
+            bottom.len(),
+            100.0 * bottom_round,
+            top.len(),
+            100.0 * top_round
+        )
+    })
+}
+
+/// The median horizontal distance of the points from their median point
+/// (coordinate by coordinate), in metres: how far they spread sideways,
+/// whatever a few stray twigs do.
+fn median_spread(points: &[Vec3]) -> f32 {
+    let mut xs: Vec<f32> = points.iter().map(|p| p.x).collect();
+    let mut ys: Vec<f32> = points.iter().map(|p| p.y).collect();
+    let centre = Vec2::new(median(&mut xs), median(&mut ys));
+    let mut distances: Vec<f32> = points
+        .iter()
+        .map(|p| p.truncate().distance(centre))
+        .collect();
+    median(&mut distances)
+}
+
+/// The share of [`SECTOR_DEG`] sectors around the points' horizontal
+/// centroid that hold a point (0 for no points).
+fn round_share(points: &[Vec3]) -> f32 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let flat: Vec<Vec2> = points.iter().map(|p| p.truncate()).collect();
+    let centre = flat.iter().sum::<Vec2>() / flat.len() as f32;
+    sectors_seen(&flat, centre, SECTOR_DEG) as f32 / (360 / SECTOR_DEG) as f32
 }
 
 /// The points with `lo ≤ z ≤ hi`.
@@ -193,14 +284,19 @@ fn ring_radius(piece: &[Vec2]) -> Option<f32> {
 /// How much of the circle around `centre` the `points` cover, in degrees:
 /// the number of [`ARC_BIN_DEG`] bins that hold a point, times the width.
 fn arc_covered_deg(points: &[Vec2], centre: Vec2) -> u32 {
-    const BINS: usize = (360 / ARC_BIN_DEG) as usize;
-    let mut seen = [false; BINS];
+    sectors_seen(points, centre, ARC_BIN_DEG) * ARC_BIN_DEG
+}
+
+/// How many of the `sector_deg`-wide sectors around `centre` hold a point.
+fn sectors_seen(points: &[Vec2], centre: Vec2, sector_deg: u32) -> u32 {
+    let sectors = (360 / sector_deg) as usize;
+    let mut seen = vec![false; sectors];
     for p in points {
         let d = *p - centre;
         let turn = (d.y.atan2(d.x) / std::f32::consts::TAU).rem_euclid(1.0);
-        seen[((turn * BINS as f32) as usize).min(BINS - 1)] = true;
+        seen[((turn * sectors as f32) as usize).min(sectors - 1)] = true;
     }
-    seen.iter().filter(|&&s| s).count() as u32 * ARC_BIN_DEG
+    seen.iter().filter(|&&s| s).count() as u32
 }
 
 /// The connected pieces of `points` when points closer than `link` seen from
@@ -317,6 +413,52 @@ mod tests {
             let radius = thickest_stem(&slice, TREE13_LINK_M);
             assert!((radius - 0.2).abs() < 0.01, "{deg}°: {radius}");
         }
+    }
+
+    /// An airborne clip of a bare 10 m tree without its ground: returns
+    /// from a dome-shaped crown top (radius 3 m, every 0.25 m) and a few
+    /// from the trunk below it.
+    fn airborne_crown() -> Vec<Vec3> {
+        let mut points = Vec::new();
+        for i in -12..=12 {
+            for j in -12..=12 {
+                let at = 0.25 * Vec2::new(i as f32, j as f32);
+                if at.length() <= 3.0 {
+                    points.push(at.extend(10.0 - at.length_squared() / 3.0));
+                }
+            }
+        }
+        points.extend((0..12).map(|k| Vec3::new(0.2, 0.0, 0.5 * k as f32)));
+        points
+    }
+
+    #[test]
+    fn an_airborne_clip_seen_from_below_is_flagged() {
+        assert_eq!(seen_from_below(&airborne_crown()), None);
+        let flipped: Vec<Vec3> = airborne_crown().iter().map(|p| p.with_z(-p.z)).collect();
+        let note = seen_from_below(&flipped).expect("a note");
+        assert!(note.contains("upside down") && note.contains("z axis points up"));
+    }
+
+    /// A sparse terrestrial scan sees the trunk all round and most too, but
+    /// a trunk is narrower than a crown's top: a ring of `radius` around
+    /// the lowest metre of a 10 m cloud, twigs in a row at its top.
+    fn ring_below_twigs(radius: f32) -> Vec<Vec3> {
+        let mut points = stem(Vec2::ZERO, radius, 0.0, 1.0, 400);
+        points.extend((0..20).map(|k| Vec3::new(0.1 * k as f32, 0.0, 10.0)));
+        points
+    }
+
+    #[test]
+    fn a_trunk_seen_all_round_is_no_crown_top() {
+        assert_eq!(seen_from_below(&ring_below_twigs(0.3)), None);
+        assert!(seen_from_below(&ring_below_twigs(1.0)).is_some());
+    }
+
+    #[test]
+    fn an_empty_or_flat_clip_gets_no_note() {
+        assert_eq!(seen_from_below(&[]), None);
+        assert_eq!(seen_from_below(&[Vec3::ZERO; 5]), None);
     }
 
     /// A conifer's top: a 2 cm leader with a whorl of eight twigs that

@@ -294,6 +294,9 @@ fn separated(
         });
     }
     check_volume(&split.tree.points)?;
+    if split.method == GroundMethod::None {
+        notes.extend(super::upright::seen_from_below(&split.tree.points));
+    }
     Ok((finite, split))
 }
 
