@@ -411,8 +411,8 @@ pub(crate) fn z_range<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (f32, f
 /// and 57 of these 62 clouds rotated by 20°, 40° and 60°. The drift of the
 /// centroid from the lowest tenth to the next, used before, read low
 /// branches as lean (31° and 36° on two upright oaks) and flagged 2, 62 and
-/// 56. In `silva reconstruct`, no upright cloud of 100 synthetic TLS and 40
-/// synthetic ALS scans is flagged.
+/// 56. In `silva reconstruct`, none of 100 upright synthetic TLS scans is
+/// flagged (the airborne pipeline does not run this test).
 const FLAGGED_LEAN_DEG: f32 = 30.0;
 
 /// The share of the height, from the bottom, whose points measure the lean.
