@@ -422,7 +422,7 @@ const LEAN_SHARE: f32 = 0.15;
 const MAX_LEAN_DEG: f32 = 60.0;
 
 /// Checks that the tree stands upright: the lowest part (the trunk) must be
-/// narrow and not lean over. Called by the pipelines after ground removal.
+/// narrow and not lean over. Called by the dense pipeline on its cleaned points.
 /// Returns a note when the trunk leans enough to suggest a tilted cloud.
 pub(crate) fn check_upright(
     points: &[Vec3],
