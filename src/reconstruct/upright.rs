@@ -1,4 +1,4 @@
-//! Whether a dense scan stands on its trunk or on its crown's top.
+//! Whether a cloud stands on its trunk or on its crown's top.
 //!
 //! The test on spreads ([`super::check_upright`]) compares how far
 //! the lowest and the highest tenth of the cloud spread sideways, which
