@@ -687,14 +687,8 @@ fn trunk_coverage(points: &[Vec3]) -> f32 {
             continue;
         }
         let (c, _) = horizontal_spread(slice);
-        let mut seen = [false; SECTORS];
-        for p in slice {
-            let d = p.truncate() - c;
-            let a = d.y.atan2(d.x) + std::f32::consts::PI;
-            let s = ((a / std::f32::consts::TAU) * SECTORS as f32) as usize;
-            seen[s.min(SECTORS - 1)] = true;
-        }
-        total += seen.iter().filter(|&&s| s).count() as f32 / SECTORS as f32;
+        let flat: Vec<glam::Vec2> = slice.iter().map(|p| p.truncate()).collect();
+        total += radii::sectors_seen(&flat, c, SECTORS) as f32 / SECTORS as f32;
     }
     total / SLICES as f32
 }

@@ -346,7 +346,7 @@ fn section_radius(section: &[Vec2], noise_m: f32) -> f32 {
         && circle.radius >= spread
         && circle.radius <= 2.0 * spread
         && rms <= 0.1 * circle.radius + noise_m
-        && sectors_seen(section, circle.centre) >= 3;
+        && section_sectors_seen(section, circle.centre) >= 3;
     if plausible { circle.radius } else { spread }
 }
 
@@ -530,7 +530,7 @@ fn slice_fit(
     let Some((circle, inliers)) = robust_circle(&flat, params.search_radius_m) else {
         return Err(format!("no circle fits the {} trunk points", flat.len()));
     };
-    let sectors = sectors_seen(&inliers, circle.centre);
+    let sectors = section_sectors_seen(&inliers, circle.centre);
     let rms = circle_rms(&inliers, circle);
     if inliers.len() < params.min_trunk_points || sectors < params.min_sectors {
         return Err(format!(
@@ -799,14 +799,23 @@ pub(crate) fn circle_rms(points: &[Vec2], circle: Circle) -> f32 {
     (sum / points.len().max(1) as f32).sqrt()
 }
 
+/// Sectors (30° wide) in which [`section_sectors_seen`] counts an arc.
+const SECTION_SECTORS: usize = 12;
+
 /// Number of 30° sectors around `centre` that hold at least one point.
-fn sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
-    let mut seen = [false; 12];
+fn section_sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
+    sectors_seen(points, centre, SECTION_SECTORS)
+}
+
+/// Number of the `sectors` equal sectors around `centre` that hold at least
+/// one point: how far round a stem (or a crown) the scan saw.
+pub(crate) fn sectors_seen(points: &[Vec2], centre: Vec2, sectors: usize) -> u32 {
+    let mut seen = vec![false; sectors];
     for p in points {
         let d = *p - centre;
         let a = d.y.atan2(d.x) + std::f32::consts::PI;
-        let s = (a / std::f32::consts::TAU * 12.0) as usize;
-        seen[s.min(11)] = true;
+        let s = (a / std::f32::consts::TAU * sectors as f32) as usize;
+        seen[s.min(sectors - 1)] = true;
     }
     seen.iter().filter(|&&s| s).count() as u32
 }
@@ -996,7 +1005,7 @@ mod tests {
         assert!((c.radius - 0.251).abs() < 0.005, "{c:?}");
         assert!(c.centre.distance(Vec2::new(2.0, 3.0)) < 0.005);
         assert_eq!(inliers.len(), 60);
-        assert_eq!(sectors_seen(&inliers, c.centre), 6);
+        assert_eq!(section_sectors_seen(&inliers, c.centre), 6);
     }
 
     /// A 0.3 m trunk scanned at breast height, with six spurious branches

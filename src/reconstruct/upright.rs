@@ -24,7 +24,7 @@ use glam::{Vec2, Vec3};
 
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
-use crate::reconstruct::radii::{circle_rms, median, robust_circle};
+use crate::reconstruct::radii::{circle_rms, median, robust_circle, sectors_seen};
 
 /// Where the two slices lie, as shares of the cloud's height from its
 /// lowest (and from its highest) point: clear of the ground and the root
@@ -175,7 +175,8 @@ fn round_share(points: &[Vec3]) -> f32 {
     }
     let flat: Vec<Vec2> = points.iter().map(|p| p.truncate()).collect();
     let centre = flat.iter().sum::<Vec2>() / flat.len() as f32;
-    sectors_seen(&flat, centre, SECTOR_DEG) as f32 / (360 / SECTOR_DEG) as f32
+    let sectors = (360 / SECTOR_DEG) as usize;
+    sectors_seen(&flat, centre, sectors) as f32 / sectors as f32
 }
 
 /// The points with `lo ≤ z ≤ hi`.
@@ -284,19 +285,7 @@ fn ring_radius(piece: &[Vec2]) -> Option<f32> {
 /// How much of the circle around `centre` the `points` cover, in degrees:
 /// the number of [`ARC_BIN_DEG`] bins that hold a point, times the width.
 fn arc_covered_deg(points: &[Vec2], centre: Vec2) -> u32 {
-    sectors_seen(points, centre, ARC_BIN_DEG) * ARC_BIN_DEG
-}
-
-/// How many of the `sector_deg`-wide sectors around `centre` hold a point.
-fn sectors_seen(points: &[Vec2], centre: Vec2, sector_deg: u32) -> u32 {
-    let sectors = (360 / sector_deg) as usize;
-    let mut seen = vec![false; sectors];
-    for p in points {
-        let d = *p - centre;
-        let turn = (d.y.atan2(d.x) / std::f32::consts::TAU).rem_euclid(1.0);
-        seen[((turn * sectors as f32) as usize).min(sectors - 1)] = true;
-    }
-    seen.iter().filter(|&&s| s).count() as u32
+    sectors_seen(points, centre, (360 / ARC_BIN_DEG) as usize) * ARC_BIN_DEG
 }
 
 /// The connected pieces of `points` when points closer than `link` seen from
