@@ -84,7 +84,8 @@ pub struct Terrain {
     /// Number of occupied grid cells, and of those that agree with the surface.
     cells: (usize, usize),
     /// Terrain cells that hold only ground: enough points, all within the
-    /// ground tolerance of the lowest.
+    /// ground tolerance of the lowest in height above the plane (see
+    /// [`count_bare_cells`]).
     bare_cells: usize,
     /// Per terrain cell: the mean height of its ground returns (those within
     /// the ground tolerance of its lowest) minus the plane (see
@@ -247,11 +248,6 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
     if cells.len() < 3 {
         return None;
     }
-    let bare: Vec<(i32, i32)> = cells
-        .iter()
-        .filter(|(_, c)| c.count >= BARE_CELL_MIN_POINTS && c.high - c.low.z <= GROUND_TOLERANCE_M)
-        .map(|(k, _)| *k)
-        .collect();
     // Sorted by cell, so that the plane's sums do not depend on the hash
     // map's order.
     let mut candidates: Vec<((i32, i32), DVec3)> = cells
@@ -266,7 +262,7 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         .filter(|(_, keep)| **keep)
         .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
         .collect();
-    let bare_cells = bare.iter().filter(|k| residual_m.contains_key(k)).count();
+    let bare_cells = count_bare_cells(points, origin, plane, &residual_m);
     let surface_m = mean_ground(points, origin, plane, &residual_m);
     Some(Terrain {
         plane,
@@ -282,13 +278,9 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
 struct CellStats {
     /// The lowest point.
     low: glam::Vec3,
-    /// The highest z.
-    high: f32,
-    /// The number of points.
-    count: u32,
 }
 
-/// The points' grid cells with their lowest point, highest z and count.
+/// The points' grid cells with their lowest point.
 fn cell_stats(points: &[glam::Vec3], origin: Vec2) -> HashMap<(i32, i32), CellStats> {
     let mut cells: HashMap<(i32, i32), CellStats> = HashMap::new();
     for &p in points {
@@ -298,14 +290,8 @@ fn cell_stats(points: &[glam::Vec3], origin: Vec2) -> HashMap<(i32, i32), CellSt
                 if p.z < c.low.z {
                     c.low = p;
                 }
-                c.high = c.high.max(p.z);
-                c.count += 1;
             })
-            .or_insert(CellStats {
-                low: p,
-                high: p.z,
-                count: 1,
-            });
+            .or_insert(CellStats { low: p });
     }
     cells
 }
@@ -360,6 +346,41 @@ fn mean_ground(
     sums.into_iter()
         .map(|(cell, (sum, n))| (cell, (sum / f64::from(n)) as f32))
         .collect()
+}
+
+/// The terrain cells (those in `residual_m`) that hold only ground: at
+/// least [`BARE_CELL_MIN_POINTS`] points, all within [`GROUND_TOLERANCE_M`]
+/// of each other in height above the plane. Measured above the plane
+/// rather than in z, so that a cell of open ground on a slope is as bare
+/// as on the level: a 1 m cell on a 30° slope spans 0.58 m in z (0.82 m
+/// across its diagonal), which the tolerance would otherwise read as
+/// something standing on it, and no ground steeper than about 20° would
+/// be found.
+fn count_bare_cells(
+    points: &[glam::Vec3],
+    origin: Vec2,
+    plane: [f64; 3],
+    residual_m: &HashMap<(i32, i32), f32>,
+) -> usize {
+    // Per cell: lowest and highest height above the plane, and the count.
+    let mut spans: HashMap<(i32, i32), (f64, f64, u32)> = HashMap::new();
+    for p in points {
+        let cell = cell_of(origin, p.x, p.y);
+        if !residual_m.contains_key(&cell) {
+            continue;
+        }
+        let above = f64::from(p.z) - eval_plane(plane, p.as_dvec3());
+        let span = spans.entry(cell).or_insert((above, above, 0));
+        span.0 = span.0.min(above);
+        span.1 = span.1.max(above);
+        span.2 += 1;
+    }
+    spans
+        .values()
+        .filter(|(low, high, n)| {
+            *n >= BARE_CELL_MIN_POINTS && high - low <= f64::from(GROUND_TOLERANCE_M)
+        })
+        .count()
 }
 
 fn cell_of(origin: Vec2, x: f32, y: f32) -> (i32, i32) {
@@ -439,5 +460,30 @@ mod tests {
         let surface = terrain.surface_at(10.0, 10.0) - truth;
         assert!(lowest < -0.05, "lowest returns {lowest:+.3} m");
         assert!(surface.abs() < 0.02, "surface {surface:+.3} m");
+    }
+
+    /// Open ground on a 35° slope with a pole standing on it: a 1 m cell
+    /// spans 0.7 m in z, yet the cells are bare in height above the plane,
+    /// so the slope is found as ground (before the spans were measured
+    /// above the plane, nothing steeper than about 20° was) and the pole
+    /// stays tree.
+    #[test]
+    fn steep_open_ground_is_ground() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noise = rand_distr::Normal::new(0.0f32, 0.05).expect("a valid deviation");
+        let rise = 35f32.to_radians().tan();
+        let mut points: Vec<Vec3> = (0..8_000)
+            .map(|_| {
+                let (x, y) = (20.0 * rng.random::<f32>(), 20.0 * rng.random::<f32>());
+                Vec3::new(x, y, rise * x + rng.sample(noise))
+            })
+            .collect();
+        points.extend((4..=40).map(|k| Vec3::new(10.0, 10.0, rise * 10.0 + k as f32 * 0.25)));
+        let split = split_ground(&PointCloud::from_points(DVec3::ZERO, points));
+        assert_eq!(split.method, GroundMethod::Geometry);
+        let slope = split.terrain.as_ref().expect("a terrain").slope_deg();
+        assert!((slope - 35.0).abs() < 1.0, "slope {slope:.1}°");
+        assert_eq!(split.tree.len(), 37, "the pole, and no ground");
     }
 }
