@@ -614,3 +614,59 @@ fn a_narrow_fork_keeps_both_stems_on_their_axes() {
     assert!(split < 0.05, "a node {split} m off the stems' axes");
     assert!(merged > 0.1, "without the split a node is {merged} m off");
 }
+
+/// A plot scan holds the ground around the stem, here a disc of 8 m radius
+/// (level, and on a 20° slope) under an oak crown that overhangs all of it
+/// (its radius is 9.6 m), so that no ground cell is open to the sky. The ground is found and left
+/// out: the skeleton matches the truth as well as the scan of the tree
+/// alone, and height and DBH agree with it. Before the dense pipeline
+/// removed ground, its check rejected such a plot as a tilted or lying tree
+/// (the lowest tenth spread metres sideways), and before a cell counted as
+/// open ground with clear air above its ground layer (rather than nothing
+/// at all above it), no ground was found under a crown.
+#[test]
+fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
+    use silva::eval::compare::compare;
+    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Oak),
+        1,
+        silva::Anchor::default(),
+    );
+    let alone = reconstruct(
+        &simulate_tls(&truth, &TlsOptions::default(), 1),
+        &Options::default(),
+    )
+    .unwrap();
+    let alone_fit = compare(&truth, &alone.skeleton, 0.1, 0.0);
+    for degrees in [0.0f32, 20.0] {
+        let opts = TlsOptions {
+            ground: Some(TlsGround {
+                radius_m: 8.0,
+                slope: glam::Vec2::new(degrees.to_radians().tan(), 0.0),
+            }),
+            ..TlsOptions::default()
+        };
+        let scan = simulate_tls(&truth, &opts, 1);
+        let plot = reconstruct(&scan, &Options::default()).unwrap();
+        let ground = plot.notes.iter().find(|n| n.starts_with("ground:"));
+        let slope = format!("by terrain fit, terrain slope {degrees:.0}°");
+        assert!(
+            ground.is_some_and(|n| n.contains(&slope)),
+            "{degrees}°: {ground:?}"
+        );
+        let fit = compare(&truth, &plot.skeleton, 0.1, 0.0);
+        assert!(
+            fit.recall >= alone_fit.recall - 0.01 && fit.precision >= alone_fit.precision - 0.01,
+            "{degrees}°: recall {:.3} precision {:.3}, alone {:.3} {:.3}",
+            fit.recall,
+            fit.precision,
+            alone_fit.recall,
+            alone_fit.precision
+        );
+        let height = plot.metrics.height_m - alone.metrics.height_m;
+        let dbh = plot.metrics.dbh_m - alone.metrics.dbh_m;
+        assert!(height.abs() <= 0.05, "{degrees}°: height {height:+.3} m");
+        assert!(dbh.abs() <= 0.01, "{degrees}°: DBH {dbh:+.3} m");
+    }
+}

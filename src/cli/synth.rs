@@ -15,8 +15,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use glam::DVec3;
 use silva::synth::{
-    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, simulate_als,
-    simulate_tls,
+    AlsOptions, Foliage, Leaves, Species, TlsGround, TlsOptions, TreeParams, generate,
+    simulate_als, simulate_tls,
 };
 use silva::{Anchor, PointCloud, Skeleton};
 
@@ -44,6 +44,15 @@ pub struct ScanArgs {
     /// TLS: keep points that no scanner could see (a clean, complete scan).
     #[arg(long)]
     no_occlusion: bool,
+    /// TLS: also scan the ground, as a plot scan holds it: a disc of this
+    /// radius in metres around the trunk base (default: no ground, a tree
+    /// already cut out of its plot).
+    #[arg(long)]
+    ground_radius: Option<f32>,
+    /// Slope of the ground in degrees, rising along +x through the trunk
+    /// base (ALS clips and TLS ground; default 0, level).
+    #[arg(long)]
+    ground_slope: Option<f32>,
     /// ALS: leaf state of deciduous crowns; conifers keep their needles.
     /// `off` (bare twigs) as AHN, flown in winter and early spring.
     #[arg(long, value_enum, default_value_t = Leaves::Off)]
@@ -63,7 +72,23 @@ impl ScanArgs {
                 bail!("--noise must be a standard deviation in metres in [0, 1], got {n}");
             }
         }
+        if let Some(r) = self.ground_radius {
+            if !(r.is_finite() && (0.0..=50.0).contains(&r)) {
+                bail!("--ground-radius must be a radius in metres in [0, 50], got {r}");
+            }
+        }
+        if let Some(s) = self.ground_slope {
+            if !(s.is_finite() && (0.0..=60.0).contains(&s)) {
+                bail!("--ground-slope must be an angle in degrees in [0, 60], got {s}");
+            }
+        }
         Ok(())
+    }
+
+    /// The ground's rise per metre along x and y.
+    fn slope(&self) -> glam::Vec2 {
+        let degrees = self.ground_slope.unwrap_or(0.0);
+        glam::Vec2::new(degrees.to_radians().tan(), 0.0)
     }
 
     /// The terrestrial simulator's options.
@@ -73,6 +98,10 @@ impl ScanArgs {
             points_per_m2: self.density.unwrap_or(defaults.points_per_m2),
             noise_sd_m: self.noise.unwrap_or(defaults.noise_sd_m),
             occlusion: !self.no_occlusion,
+            ground: self.ground_radius.map(|radius_m| TlsGround {
+                radius_m,
+                slope: self.slope(),
+            }),
             ..defaults
         }
     }
@@ -84,6 +113,7 @@ impl ScanArgs {
             density_pts_per_m2: self.density.unwrap_or(defaults.density_pts_per_m2),
             noise_sd_m: self.noise.unwrap_or(defaults.noise_sd_m),
             foliage: Foliage::for_species(species, self.leaves),
+            ground_slope: self.slope(),
             ..defaults
         }
     }

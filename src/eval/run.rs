@@ -17,6 +17,7 @@ use crate::cloud::PointCloud;
 use crate::encode::lsystem::{self, LsJson, LsOptions};
 use crate::encode::{chaincode, gzip_len};
 use crate::mesh::{Lod, build_mesh};
+use crate::reconstruct::ground::split_ground;
 use crate::reconstruct::metrics::{TreeMetrics, wood_volume_m3};
 use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
 use crate::skeleton::{NodeId, Skeleton};
@@ -225,9 +226,12 @@ fn fill(
     row.notes = rec.notes.clone();
     row.truth = truth.map(|t| truth_figures(t, rec, opts));
     if rec.mode == Mode::Dense {
-        row.fit = Some(surface_fit(&rec.skeleton, cloud));
+        // The fit is the tree's: a plot scan's ground is no cylinder's, and
+        // the dense pipeline leaves it out (`reconstruct::dense`, step 0).
+        let tree = split_ground(cloud).tree;
+        row.fit = Some(surface_fit(&rec.skeleton, &tree));
         let mesh = build_mesh(&rec.skeleton, Lod::L3);
-        row.mesh_fit = Some(mesh_fit(&mesh, rec.skeleton.anchor(), cloud));
+        row.mesh_fit = Some(mesh_fit(&mesh, rec.skeleton.anchor(), &tree));
     }
     row.encoding = Some(encoding_figures(&rec.skeleton));
     row.lods = lod_figures(&rec.skeleton)

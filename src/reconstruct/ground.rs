@@ -53,11 +53,24 @@ const RESIDUAL_LIMITS_M: [f64; 4] = [2.0, 1.0, 0.5, 0.3];
 /// 1 m cell of open ground).
 const BARE_CELL_MIN_POINTS: u32 = 5;
 
+/// Clear air (m) a cell needs above its ground layer to count as open
+/// ground ([`count_bare_cells`]): more than the layer of grass, litter and
+/// noise the ground tolerance takes in, less than the height of the
+/// lowest branches over a plot.
+const BARE_CLEARANCE_M: f64 = 1.0;
+
 /// Share of occupied grid cells that must agree with the fitted surface for
 /// it to be accepted as terrain. Around a tree most cells see ground; a
 /// segmented tree without ground has only its trunk cell near its lowest
 /// level.
 const MIN_GROUND_CELL_SHARE: f64 = 0.25;
+
+/// Terrain slope (degrees) from which [`GroundSplit::steep_note`] warns of
+/// a tilted cloud. Synthetic AHN-like clips on level ground fit 0°; turned
+/// by 20–45° about a horizontal axis, their terrain fits at the turn's
+/// angle (`tests/reconstruct_airborne.rs`). Real ground can be this steep
+/// (a dike's face at 1:3 is 18°), hence a note and not an error.
+pub const STEEP_TERRAIN_DEG: f32 = 15.0;
 
 /// How the ground was told apart from the tree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -83,9 +96,8 @@ pub struct Terrain {
     origin: Vec2,
     /// Number of occupied grid cells, and of those that agree with the surface.
     cells: (usize, usize),
-    /// Terrain cells that hold only ground: enough points, all within the
-    /// ground tolerance of the lowest in height above the plane (see
-    /// [`count_bare_cells`]).
+    /// Terrain cells that are open ground: enough points in a ground layer
+    /// with clear air above it (see [`count_bare_cells`]).
     bare_cells: usize,
     /// Per terrain cell: the mean height of its ground returns (those within
     /// the ground tolerance of its lowest) minus the plane (see
@@ -134,6 +146,20 @@ impl Terrain {
         self.plane_at(x, y) + self.local_mean(&self.surface_m, x, y)
     }
 
+    /// [`Terrain::surface_at`] where the ground was seen: `None` when no
+    /// terrain cell lies within one cell of `(x, y)`, where the surface
+    /// would be the plane's extrapolation alone.
+    pub fn surface_near(&self, x: f32, y: f32) -> Option<f32> {
+        let (i, j) = cell_of(self.origin, x, y);
+        let seen = (-1..=1).any(|di| {
+            (-1..=1).any(|dj| {
+                self.surface_m
+                    .contains_key(&(i.saturating_add(di), j.saturating_add(dj)))
+            })
+        });
+        seen.then(|| self.surface_at(x, y))
+    }
+
     /// Slope of the fitted plane in degrees (0 = level).
     pub fn slope_deg(&self) -> f32 {
         let [a, b, _] = self.plane;
@@ -173,6 +199,37 @@ pub struct GroundSplit {
 }
 
 impl GroundSplit {
+    /// One line for a reconstruction's notes: how many points were ground,
+    /// found how, and the terrain's slope.
+    pub fn note(&self) -> String {
+        let how = match self.method {
+            GroundMethod::Classification => "by LAS class 2",
+            GroundMethod::Geometry => "by terrain fit",
+            GroundMethod::None => return "ground: none found; all points treated as tree".into(),
+        };
+        let slope = self
+            .terrain
+            .as_ref()
+            .map(|t| format!(", terrain slope {:.0}°", t.slope_deg()))
+            .unwrap_or_default();
+        format!("ground: {} points {how}{slope}", self.ground.len())
+    }
+
+    /// A note when the terrain is steeper than [`STEEP_TERRAIN_DEG`]:
+    /// either the ground really is that steep, or the cloud is tilted, and
+    /// the pipelines, which take +z as up, measure height and trunk base
+    /// askew. A note and not an error: trees grow on hillsides.
+    pub fn steep_note(&self) -> Option<String> {
+        let slope = self.terrain.as_ref()?.slope_deg();
+        (slope >= STEEP_TERRAIN_DEG).then(|| {
+            format!(
+                "the terrain slopes {slope:.0}°: steep ground, or a tilted cloud. silva takes +z \
+                 as up, as in a georeferenced clip; if the cloud is tilted, level it first, or \
+                 height and trunk base are measured askew"
+            )
+        })
+    }
+
     /// Terrain height (relative metres) at relative `(x, y)`, when there is
     /// a terrain surface. Under the trunk this is the trunk base.
     pub fn ground_height_at(&self, x: f32, y: f32) -> Option<f32> {
@@ -348,38 +405,55 @@ fn mean_ground(
         .collect()
 }
 
-/// The terrain cells (those in `residual_m`) that hold only ground: at
-/// least [`BARE_CELL_MIN_POINTS`] points, all within [`GROUND_TOLERANCE_M`]
-/// of each other in height above the plane. Measured above the plane
-/// rather than in z, so that a cell of open ground on a slope is as bare
-/// as on the level: a 1 m cell on a 30° slope spans 0.58 m in z (0.82 m
-/// across its diagonal), which the tolerance would otherwise read as
-/// something standing on it, and no ground steeper than about 20° would
-/// be found.
+/// The terrain cells (those in `residual_m`) that are open ground: at
+/// least [`BARE_CELL_MIN_POINTS`] points within [`GROUND_TOLERANCE_M`] of
+/// the cell's lowest, and clear air for [`BARE_CLEARANCE_M`] above them.
+///
+/// Heights are measured above the plane rather than in z, so that a cell
+/// of open ground on a slope is as bare as on the level: a 1 m cell on a
+/// 30° slope spans 0.58 m in z (0.82 m across its diagonal), which the
+/// tolerance would otherwise read as something standing on it, and no
+/// ground steeper than about 20° would be found. Points higher than the
+/// clearance do not count against the cell: under a crown, a terrestrial
+/// plot scan sees the ground with the canopy metres above it, and when
+/// every ground cell of a plot lies under the crown, nothing else shows
+/// that the ground is ground. The bottom layer of a crown, which this test
+/// keeps out, always has more of the crown right above its lowest points.
 fn count_bare_cells(
     points: &[glam::Vec3],
     origin: Vec2,
     plane: [f64; 3],
     residual_m: &HashMap<(i32, i32), f32>,
 ) -> usize {
-    // Per cell: lowest and highest height above the plane, and the count.
-    let mut spans: HashMap<(i32, i32), (f64, f64, u32)> = HashMap::new();
+    let above = |p: &glam::Vec3| f64::from(p.z) - eval_plane(plane, p.as_dvec3());
+    let mut lowest: HashMap<(i32, i32), f64> = HashMap::new();
     for p in points {
         let cell = cell_of(origin, p.x, p.y);
-        if !residual_m.contains_key(&cell) {
-            continue;
+        if residual_m.contains_key(&cell) {
+            let low = lowest.entry(cell).or_insert(f64::INFINITY);
+            *low = low.min(above(p));
         }
-        let above = f64::from(p.z) - eval_plane(plane, p.as_dvec3());
-        let span = spans.entry(cell).or_insert((above, above, 0));
-        span.0 = span.0.min(above);
-        span.1 = span.1.max(above);
-        span.2 += 1;
     }
-    spans
+    // Per cell: the points of its ground layer, and whether anything
+    // stands in the clearance above it.
+    let tolerance = f64::from(GROUND_TOLERANCE_M);
+    let mut layers: HashMap<(i32, i32), (u32, bool)> = HashMap::new();
+    for p in points {
+        let cell = cell_of(origin, p.x, p.y);
+        let Some(&low) = lowest.get(&cell) else {
+            continue;
+        };
+        let height = above(p) - low;
+        let layer = layers.entry(cell).or_insert((0, false));
+        if height <= tolerance {
+            layer.0 += 1;
+        } else if height <= tolerance + BARE_CLEARANCE_M {
+            layer.1 = true;
+        }
+    }
+    layers
         .values()
-        .filter(|(low, high, n)| {
-            *n >= BARE_CELL_MIN_POINTS && high - low <= f64::from(GROUND_TOLERANCE_M)
-        })
+        .filter(|&&(n, blocked)| n >= BARE_CELL_MIN_POINTS && !blocked)
         .count()
 }
 

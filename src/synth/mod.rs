@@ -42,7 +42,7 @@ mod tls;
 mod weber_penn;
 
 pub use als::{AlsOptions, Foliage, Leaves, MAX_ALS_POINTS, simulate_als};
-pub use tls::{MAX_TLS_POINTS, ScannerPlacement, TlsOptions, simulate_tls};
+pub use tls::{MAX_TLS_POINTS, ScannerPlacement, TlsGround, TlsOptions, simulate_tls};
 pub use weber_penn::{CrownShape, LevelParams, MAX_NODES, TreeParams, generate};
 
 /// A tree species with a generator preset ([`TreeParams::preset`]).

@@ -19,6 +19,7 @@ pub(crate) enum Stream {
     Tree = 1,
     Tls = 2,
     Als = 3,
+    TlsGround = 4,
 }
 
 /// A ChaCha8 generator for `seed` on one stream.

@@ -52,6 +52,21 @@ pub struct TlsOptions {
     pub occlusion: bool,
     /// Scanner positions (used when `occlusion` is on).
     pub scanners: ScannerPlacement,
+    /// The ground the scan holds too, as a plot scan does: `None` (the
+    /// default) for a tree already cut out of its plot.
+    pub ground: Option<TlsGround>,
+}
+
+/// The ground around the tree in a terrestrial scan: a disc centred on the
+/// trunk base, on the plane through the base with the given gradient,
+/// sampled at the bark's density and seen (with occlusion on) by the same
+/// scanners, so the stem's shadow stays empty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TlsGround {
+    /// Radius of the scanned disc around the trunk base, in metres.
+    pub radius_m: f32,
+    /// Rise of the ground per metre along x and y (0, 0 = level).
+    pub slope: glam::Vec2,
 }
 
 impl Default for TlsOptions {
@@ -67,6 +82,7 @@ impl Default for TlsOptions {
                 distance_m: None,
                 height_m: 1.5,
             },
+            ground: None,
         }
     }
 }
@@ -117,7 +133,45 @@ pub fn simulate_tls(tree: &Skeleton, opts: &TlsOptions, seed: u64) -> PointCloud
             points.push(p + gaussian_vec(&mut rng, noise_sd));
         }
     }
+    if let Some(ground) = opts.ground {
+        // A stream of its own, so the bark points are those of the scan
+        // without ground.
+        let mut rng = seeded(seed, Stream::TlsGround);
+        let room = MAX_TLS_POINTS.saturating_sub(points.len());
+        let up = (-ground.slope).extend(1.0).normalize_or(Vec3::Z);
+        let seen = |p: Vec3| {
+            !scene.buried(p, usize::MAX)
+                && (!opts.occlusion
+                    || scanners
+                        .iter()
+                        .any(|&s| scene.visible(p, up, usize::MAX, s)))
+        };
+        let on_ground = sample_ground(&ground, density, &mut rng);
+        for p in on_ground.into_iter().filter(|&p| seen(p)).take(room) {
+            points.push(p + gaussian_vec(&mut rng, noise_sd));
+        }
+    }
     PointCloud::from_points(tree.anchor().origin, points)
+}
+
+/// Uniform points on the ground disc at `density` points/m².
+fn sample_ground(ground: &TlsGround, density: f32, rng: &mut ChaCha8Rng) -> Vec<Vec3> {
+    let radius = non_negative(ground.radius_m).min(1_000.0);
+    let slope = if ground.slope.is_finite() {
+        ground.slope
+    } else {
+        glam::Vec2::ZERO
+    };
+    let expected = std::f32::consts::PI * radius * radius * density;
+    let count = (expected.min(MAX_TLS_POINTS as f32) + unit(rng)).floor() as usize;
+    (0..count)
+        .map(|_| {
+            let r = radius * unit(rng).sqrt();
+            let (s, c) = libm::sincosf(std::f32::consts::TAU * unit(rng));
+            let xy = glam::Vec2::new(r * c, r * s);
+            xy.extend(slope.dot(xy))
+        })
+        .collect()
 }
 
 fn non_negative(x: f32) -> f32 {
@@ -230,4 +284,60 @@ pub(crate) fn crown_radius_m(tree: &Skeleton) -> f32 {
         .iter()
         .map(|n| n.position.truncate().length())
         .fold(0.0, f32::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, Vec2};
+
+    use super::*;
+    use crate::synth::{Species, TreeParams, generate};
+
+    /// The ground comes after the bark, from a stream of its own: the bark
+    /// points are those of the scan without ground, and the ground points
+    /// lie on the sloped plane through the base, in the disc, and not
+    /// inside the stem.
+    #[test]
+    fn ground_is_added_on_its_plane_and_leaves_the_bark_alone() {
+        let tree = generate(
+            &TreeParams::preset(Species::Birch),
+            2,
+            crate::Anchor::at(DVec3::ZERO),
+        );
+        let alone = simulate_tls(&tree, &TlsOptions::default(), 2);
+        let rise = 0.3;
+        let opts = TlsOptions {
+            ground: Some(TlsGround {
+                radius_m: 5.0,
+                slope: Vec2::new(rise, 0.0),
+            }),
+            noise_sd_m: 0.0,
+            ..TlsOptions::default()
+        };
+        let plot = simulate_tls(&tree, &opts, 2);
+        let bare = simulate_tls(
+            &tree,
+            &TlsOptions {
+                noise_sd_m: 0.0,
+                ..TlsOptions::default()
+            },
+            2,
+        );
+        assert_eq!(&plot.points[..bare.len()], &bare.points[..]);
+        assert_eq!(alone.len(), bare.len());
+        let ground = &plot.points[bare.len()..];
+        // π·5²·150 ≈ 11,800 points, less the stem's shadow.
+        assert!(ground.len() > 9_000, "{} ground points", ground.len());
+        for p in ground {
+            assert!((p.z - rise * p.x).abs() < 1e-4, "{p} off the plane");
+            assert!(p.truncate().length() <= 5.0 + 1e-4, "{p} outside the disc");
+        }
+        // Downhill of the base the ground lies below the synthetic stem,
+        // which starts at the base's height; uphill the stem buries it.
+        let stem = tree.radius(crate::NodeId::ROOT);
+        let inside = ground
+            .iter()
+            .filter(|p| p.z > 0.0 && p.truncate().length() < 0.9 * stem);
+        assert_eq!(inside.count(), 0, "ground inside the stem");
+    }
 }

@@ -285,8 +285,8 @@ fn separated(
     let split = split_ground(&finite);
     check_upright(&finite, &split)?;
     super::upright::check_stands_on_its_trunk(&split.tree.points, STEM_LINK_M)?;
-    notes.push(ground_note(&split));
-    notes.extend(steep_terrain_note(&split));
+    notes.push(split.note());
+    notes.extend(split.steep_note());
     if split.tree.len() < MIN_TREE_POINTS {
         return Err(ReconstructError::NoTreeAboveGround {
             tree: split.tree.len(),
@@ -451,42 +451,6 @@ fn contraction_radius(candidates: &[Vec3], params: &Params, notes: &mut Vec<Stri
     }
 }
 
-fn ground_note(split: &GroundSplit) -> String {
-    let how = match split.method {
-        GroundMethod::Classification => "by LAS class 2",
-        GroundMethod::Geometry => "by terrain fit",
-        GroundMethod::None => return "ground: none found; all points treated as tree".into(),
-    };
-    let slope = split
-        .terrain
-        .as_ref()
-        .map(|t| format!(", terrain slope {:.0}°", t.slope_deg()))
-        .unwrap_or_default();
-    format!("ground: {} points {how}{slope}", split.ground.len())
-}
-
-/// Terrain slope (degrees) from which the ground note warns of a tilted
-/// cloud. Synthetic AHN-like clips on level ground fit 0°; turned by
-/// 20–45° about a horizontal axis, their terrain fits at the turn's angle
-/// (`tests/reconstruct_airborne.rs`). Real ground can be this steep (a
-/// dike's face at 1:3 is 18°), hence a note and not an error.
-const STEEP_TERRAIN_DEG: f32 = 15.0;
-
-/// A note when the fitted terrain is steeper than [`STEEP_TERRAIN_DEG`]:
-/// either the ground really is that steep, or the cloud is tilted, and the
-/// pipeline, which takes +z as up, measures height and trunk base askew.
-/// A note and not an error: trees grow on hillsides.
-fn steep_terrain_note(split: &GroundSplit) -> Option<String> {
-    let slope = split.terrain.as_ref()?.slope_deg();
-    (slope >= STEEP_TERRAIN_DEG).then(|| {
-        format!(
-            "the terrain slopes {slope:.0}°: steep ground, or a tilted cloud. silva takes +z as \
-             up, as in a georeferenced clip; if the cloud is tilted, level it first, or height \
-             and trunk base are measured askew"
-        )
-    })
-}
-
 /// Points closer than this (metres) belong to one piece of bark in the
 /// upside-down test of a terrestrial cloud sent to this pipeline
 /// ([`super::upright`]): such a cloud's points lie at most 0.08 m apart
@@ -585,7 +549,7 @@ mod tests {
             terrain: None,
         };
         assert_eq!(
-            ground_note(&none),
+            none.note(),
             "ground: none found; all points treated as tree"
         );
         let classified = GroundSplit {
@@ -593,6 +557,6 @@ mod tests {
             method: GroundMethod::Classification,
             ..none
         };
-        assert_eq!(ground_note(&classified), "ground: 2 points by LAS class 2");
+        assert_eq!(classified.note(), "ground: 2 points by LAS class 2");
     }
 }
