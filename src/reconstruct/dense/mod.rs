@@ -392,11 +392,11 @@ fn cleaned_points(
     notes: &mut Vec<String>,
 ) -> Result<(Vec<Vec3>, Option<Terrain>), ReconstructError> {
     let (points, terrain) = without_ground(cloud, notes);
+    let tree_points = points.len();
     let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
     if let Some(voxel) = thinned {
         notes.push(format!(
-            "thinned {} points to {} on a {:.1} cm voxel grid",
-            cloud.len(),
+            "thinned {tree_points} points to {} on a {:.1} cm voxel grid",
             points.len(),
             voxel * 100.0
         ));
