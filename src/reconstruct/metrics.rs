@@ -82,7 +82,7 @@ pub enum CrownTop {
 impl CrownTop {
     /// The top of a crown of tree points `points` (ground removed).
     pub fn of(points: &[Vec3]) -> Self {
-        if horizontal_spread(points) < COLUMNAR_SPREAD_M {
+        if super::horizontal_spread(points).1 < COLUMNAR_SPREAD_M {
             CrownTop::Column
         } else {
             CrownTop::Dome
@@ -141,18 +141,6 @@ impl CrownTop {
 /// poplars, 2.06–3.07 m for birches, 2.77–4.18 m for pines and 3.53–6.11 m
 /// for oaks.
 pub(crate) const COLUMNAR_SPREAD_M: f32 = 1.8;
-
-/// RMS horizontal distance of `points` from their mean, in metres; 0 for
-/// none.
-pub(crate) fn horizontal_spread(points: &[Vec3]) -> f32 {
-    let n = points.len().max(1) as f32;
-    let mean = points.iter().map(|p| p.truncate()).sum::<glam::Vec2>() / n;
-    let square_sum: f32 = points
-        .iter()
-        .map(|p| p.truncate().distance_squared(mean))
-        .sum();
-    (square_sum / n).sqrt()
-}
 
 /// Gap to the apex, as the integration range's multiple of the deepest
 /// return's depth in [`apex_gap`]: in 40,000 draws of each model the

@@ -474,7 +474,8 @@ pub(crate) fn check_upright(
     )))
 }
 
-/// Horizontal centroid and RMS distance to it of a set of points.
+/// Horizontal centroid of `points` and their RMS horizontal distance to it,
+/// in metres; the origin and 0 for none.
 fn horizontal_spread(points: &[Vec3]) -> (glam::Vec2, f32) {
     if points.is_empty() {
         return (glam::Vec2::ZERO, 0.0);

@@ -34,7 +34,8 @@ use glam::{Vec2, Vec3};
 
 use super::Params;
 use crate::reconstruct::ground::Terrain;
-use crate::reconstruct::metrics::{COLUMNAR_SPREAD_M, horizontal_spread};
+use crate::reconstruct::horizontal_spread;
+use crate::reconstruct::metrics::COLUMNAR_SPREAD_M;
 use crate::spatial::PointIndex;
 
 /// Which of the paper's equations placed the trunk.
@@ -465,7 +466,7 @@ const LOWEST_LAYER_SHARE: usize = 10;
 /// off on synthetic poplars whose lowest layer is 0.3–0.4 m off). A broad
 /// crown's lowest layer is one or two long limbs on one side, metres off.
 fn lowest_layer_centre(tree: &[Vec3], footprint_xy: Vec2) -> Vec2 {
-    let spread = horizontal_spread(tree);
+    let (_, spread) = horizontal_spread(tree);
     if spread >= COLUMNAR_SPREAD_M || tree.len() < LOWEST_LAYER_SHARE {
         return footprint_xy;
     }
