@@ -670,3 +670,40 @@ fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
         assert!(dbh.abs() <= 0.01, "{degrees}°: DBH {dbh:+.3} m");
     }
 }
+
+/// A plot scan turned by 135° or 180° shows its ground on top, and is
+/// rejected for it. Before the dense pipeline ran the ground-on-top test of
+/// the airborne one, this poplar's plot turned by 135° reconstructed with
+/// only a lean note.
+#[test]
+fn a_plot_scan_with_its_ground_on_top_is_an_error() {
+    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Poplar),
+        3,
+        silva::Anchor::default(),
+    );
+    let opts = TlsOptions {
+        ground: Some(TlsGround {
+            radius_m: 8.0,
+            slope: glam::Vec2::ZERO,
+        }),
+        ..TlsOptions::default()
+    };
+    let scan = simulate_tls(&truth, &opts, 3);
+    let centre = scan.points.iter().copied().sum::<Vec3>() / scan.len() as f32;
+    for degrees in [135.0f32, 180.0] {
+        let turn = glam::Quat::from_rotation_x(degrees.to_radians());
+        let points = scan
+            .points
+            .iter()
+            .map(|&p| turn * (p - centre) + centre)
+            .collect();
+        let result = reconstruct(&PointCloud::from_points(scan.offset, points), &dense());
+        let error = result.map(|tree| tree.notes).expect_err("an error");
+        assert!(
+            error.to_string().contains("upside down"),
+            "{degrees}°: {error}"
+        );
+    }
+}

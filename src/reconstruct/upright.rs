@@ -17,6 +17,10 @@
 //! and more than any other part, the trunk and the crown's underside hardly
 //! at all. [`seen_from_below`] flags a clip whose lowest tenth is the one
 //! hit all round and most.
+//!
+//! A clip or a plot scan that holds its ground shows it, turned over, as a
+//! flat surface on top: [`check_ground_below`] rejects it, in both
+//! pipelines, before their ground leaves.
 
 use std::collections::HashMap;
 
@@ -24,6 +28,7 @@ use glam::{Vec2, Vec3};
 
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
+use crate::reconstruct::ground::{GroundMethod, GroundSplit, Terrain, fit_terrain};
 use crate::reconstruct::radii::{circle_rms, median, robust_circle, sectors_seen};
 
 /// Where the two slices lie, as shares of the cloud's height from its
@@ -316,6 +321,33 @@ fn pieces(points: &[Vec3], link: f32) -> Vec<Vec<Vec3>> {
         by_set.entry(sets.find(i as u32)).or_default().push(p);
     }
     by_set.into_values().collect()
+}
+
+/// Rejects a cloud whose ground lies on top: turned over, a clip or a
+/// plot scan shows a flat surface covering the top of the cloud and none
+/// (or less) at its bottom. `split` is the cloud's ground split as it
+/// stands. Both pipelines run it before their ground leaves.
+pub(super) fn check_ground_below(
+    points: &[Vec3],
+    split: &GroundSplit,
+) -> Result<(), ReconstructError> {
+    let flipped: Vec<Vec3> = points.iter().map(|p| Vec3::new(p.x, p.y, -p.z)).collect();
+    let top_share = fit_terrain(&flipped)
+        .filter(Terrain::is_ground)
+        .map_or(0.0, |t| t.cell_share());
+    let bottom_share = match split.method {
+        GroundMethod::None => 0.0,
+        _ => split.terrain.as_ref().map_or(0.0, Terrain::cell_share),
+    };
+    if top_share >= 0.5 && top_share > bottom_share + 0.2 {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud looks upside down: a flat surface covers {:.0} % of its top and only \
+             {:.0} % of its bottom",
+            top_share * 100.0,
+            bottom_share * 100.0
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -43,7 +43,7 @@
 use glam::{DVec3, Vec3};
 
 use super::ReconstructError;
-use super::ground::{GroundMethod, GroundSplit, Terrain, split_ground};
+use super::ground::{GroundMethod, GroundSplit, split_ground};
 use crate::cloud::PointCloud;
 use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
@@ -283,7 +283,7 @@ fn separated(
         ));
     }
     let split = split_ground(&finite);
-    check_upright(&finite, &split)?;
+    super::upright::check_ground_below(&finite.points, &split)?;
     super::upright::check_stands_on_its_trunk(&split.tree.points, STEM_LINK_M)?;
     notes.push(split.note());
     notes.extend(split.steep_note());
@@ -456,33 +456,6 @@ fn contraction_radius(candidates: &[Vec3], params: &Params, notes: &mut Vec<Stri
 /// ([`super::upright`]): such a cloud's points lie at most 0.08 m apart
 /// (`AutoThresholds::max_dense_spacing_m`), an AHN clip's 0.2–0.3 m.
 const STEM_LINK_M: f32 = 0.1;
-
-/// Rejects a clip whose terrain lies on top: an upside-down clip shows a
-/// flat surface covering the top of the cloud and none (or less) at its
-/// bottom.
-fn check_upright(cloud: &PointCloud, split: &GroundSplit) -> Result<(), ReconstructError> {
-    let flipped: Vec<Vec3> = cloud
-        .points
-        .iter()
-        .map(|p| Vec3::new(p.x, p.y, -p.z))
-        .collect();
-    let top_share = super::ground::fit_terrain(&flipped)
-        .filter(Terrain::is_ground)
-        .map_or(0.0, |t| t.cell_share());
-    let bottom_share = match split.method {
-        GroundMethod::None => 0.0,
-        _ => split.terrain.as_ref().map_or(0.0, Terrain::cell_share),
-    };
-    if top_share >= 0.5 && top_share > bottom_share + 0.2 {
-        return Err(ReconstructError::Degenerate(format!(
-            "the cloud looks upside down: a flat surface covers {:.0} % of its top and only \
-             {:.0} % of its bottom",
-            top_share * 100.0,
-            bottom_share * 100.0
-        )));
-    }
-    Ok(())
-}
 
 /// Rejects tree points that lie on one line or one plane (principal
 /// component spreads below [`MIN_SPREAD_M`]).

@@ -391,7 +391,7 @@ fn cleaned_points(
     params: &Params,
     notes: &mut Vec<String>,
 ) -> Result<(Vec<Vec3>, Option<Terrain>), ReconstructError> {
-    let (points, terrain) = without_ground(cloud, notes);
+    let (points, terrain) = without_ground(cloud, notes)?;
     let tree_points = points.len();
     let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
     if let Some(voxel) = thinned {
@@ -656,21 +656,26 @@ fn require_points(found: usize) -> Result<(), ReconstructError> {
 }
 
 /// The points that are not ground (step 0), and the terrain when there is
-/// ground, with notes on both. A surface the terrain fit finds with hardly
+/// ground, with notes on both; an error when the ground lies on top
+/// ([`super::upright::check_ground_below`]). A surface the terrain fit finds with hardly
 /// anything standing on it is no ground under a tree but the tree itself,
 /// lying (or a tilted cloud's flat side): all points stay, for the upright
 /// checks to judge.
-fn without_ground(cloud: &PointCloud, notes: &mut Vec<String>) -> (Vec<Vec3>, Option<Terrain>) {
+fn without_ground(
+    cloud: &PointCloud,
+    notes: &mut Vec<String>,
+) -> Result<(Vec<Vec3>, Option<Terrain>), ReconstructError> {
     let split = split_ground(cloud);
+    super::upright::check_ground_below(&cloud.points, &split)?;
     let nothing_stands = split.tree.len() < super::MIN_POINTS;
     if split.method == GroundMethod::None
         || (split.method == GroundMethod::Geometry && nothing_stands)
     {
-        return (cloud.points.clone(), None);
+        return Ok((cloud.points.clone(), None));
     }
     notes.push(split.note());
     notes.extend(split.steep_note());
-    (split.tree.points, split.terrain)
+    Ok((split.tree.points, split.terrain))
 }
 
 /// An undirected graph edge: two point indices and the length in metres.
