@@ -68,7 +68,7 @@ pub enum CrownTop {
     /// A dome (a paraboloid, or a ball near its top): the horizontal
     /// section grows linearly with d, the volume as d².
     Dome,
-    /// A columnar crown (horizontal spread under [`COLUMNAR_SPREAD_M`]): a
+    /// A columnar crown (horizontal spread under 1.8 m, `COLUMNAR_SPREAD_M`): a
     /// narrow cap on a column whose section soon stops growing, so the
     /// volume grows between d² (the cap) and d (the column). Read as d^1.5
     /// over 40 returns: fitted to the counts of returns above depth d under
