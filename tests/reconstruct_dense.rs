@@ -672,9 +672,12 @@ fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
 }
 
 /// A plot scan turned by 135° or 180° shows its ground on top, and is
-/// rejected for it. Before the dense pipeline ran the ground-on-top test of
-/// the airborne one, this poplar's plot turned by 135° reconstructed with
-/// only a lean note.
+/// rejected for it, in the dense pipeline and in the automatic mode. Before
+/// the dense pipeline ran the ground-on-top test of the airborne one, this
+/// poplar's plot turned by 135° reconstructed with only a lean note; turned
+/// by 180°, the automatic mode sent it to the airborne pipeline, whose
+/// terrain fit took the disc on top for the ground and rejected the cloud
+/// for having "only 0 points above the ground".
 #[test]
 fn a_plot_scan_with_its_ground_on_top_is_an_error() {
     use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
@@ -699,11 +702,14 @@ fn a_plot_scan_with_its_ground_on_top_is_an_error() {
             .iter()
             .map(|&p| turn * (p - centre) + centre)
             .collect();
-        let result = reconstruct(&PointCloud::from_points(scan.offset, points), &dense());
-        let error = result.map(|tree| tree.notes).expect_err("an error");
-        assert!(
-            error.to_string().contains("upside down"),
-            "{degrees}°: {error}"
-        );
+        let cloud = PointCloud::from_points(scan.offset, points);
+        for options in [dense(), Options::default()] {
+            let result = reconstruct(&cloud, &options);
+            let error = result.map(|tree| tree.notes).expect_err("an error");
+            assert!(
+                error.to_string().contains("upside down"),
+                "{degrees}°: {error}"
+            );
+        }
     }
 }

@@ -38,7 +38,7 @@ pub const GROUND_TOLERANCE_M: f32 = 0.4;
 /// Points this far below the terrain are noise (multipath, birds' shadows in
 /// the return sequence); they are put with the ground so that they never
 /// reach the skeleton.
-const BELOW_GROUND_NOISE_M: f32 = 1.0;
+pub(crate) const BELOW_GROUND_NOISE_M: f32 = 1.0;
 
 /// Side of a terrain grid cell in metres: at 10–30 pts/m² a cell holds a
 /// dozen points, enough for one to be a ground return where the crown lets

@@ -28,7 +28,9 @@ use glam::{Vec2, Vec3};
 
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
-use crate::reconstruct::ground::{GroundMethod, GroundSplit, Terrain, fit_terrain};
+use crate::reconstruct::ground::{
+    BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, fit_terrain,
+};
 use crate::reconstruct::radii::{circle_rms, median, robust_circle, sectors_seen};
 
 /// Where the two slices lie, as shares of the cloud's height from its
@@ -347,7 +349,41 @@ pub(super) fn check_ground_below(
             bottom_share * 100.0
         )));
     }
+    let under = split
+        .terrain
+        .as_ref()
+        .map_or(0.0, |t| share_under(points, t));
+    if under >= MAX_SHARE_UNDER_GROUND {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud looks upside down: {:.0} % of the points off its ground surface lie under \
+             it, so the surface covers the cloud's top",
+            under * 100.0
+        )));
+    }
     Ok(())
+}
+
+/// Share of the points off the ground surface that lie under it, from which
+/// [`check_ground_below`] takes a cloud as upside down. The terrain fit of a
+/// turned-over plot can take the flat surface on top for ground when it
+/// holds most cells' lowest points (a disc around a narrow crown); the tree
+/// then hangs under it. A clip the right way up has only stray noise there.
+const MAX_SHARE_UNDER_GROUND: f32 = 0.5;
+
+/// Of the points more than the ground tolerance above `terrain` or more
+/// than the ground split's noise depth under it, the share under it (0 for
+/// none).
+fn share_under(points: &[Vec3], terrain: &Terrain) -> f32 {
+    let (mut over, mut under) = (0usize, 0usize);
+    for p in points {
+        let above = p.z - terrain.height_at(p.x, p.y);
+        if above >= GROUND_TOLERANCE_M {
+            over += 1;
+        } else if above < -BELOW_GROUND_NOISE_M {
+            under += 1;
+        }
+    }
+    under as f32 / (over + under).max(1) as f32
 }
 
 #[cfg(test)]
