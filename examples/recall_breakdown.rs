@@ -109,10 +109,12 @@ fn main() {
         let d = r_index
             .nearest(s.at)
             .map_or(f32::INFINITY, |n| n.distance_sq.sqrt());
-        let radius = truth.radius(s.node);
-        if radius < min_radius_m {
+        // The eval's filter: the mean of the internode's end radii.
+        let (base, tip) = truth.internode_radii(s.node);
+        if (base + tip) * 0.5 < min_radius_m {
             continue;
         }
+        let radius = truth.radius(s.node);
         let points = p_index.within(s.at, radius + 0.02).len();
         let class = match radius {
             x if x < 0.01 => 0,

@@ -7,7 +7,9 @@
 //! *recalled* when a reconstruction sample lies within the tolerance; a
 //! reconstruction sample is *precise* when a truth sample does. Because
 //! samples are evenly spaced, the shares are shares of branch length. Recall
-//! counts only truth internodes whose radius (mean of the two end radii)
+//! counts only truth internodes whose radius (mean of the two end radii,
+//! a lateral's first internode its own radius: see
+//! [`Skeleton::internode_radii`])
 //! reaches `min_truth_radius_m`, so that twigs no scanner resolves do not
 //! dilute it; precision is measured against the whole truth, since a
 //! reconstructed twig is right wherever a real one is.
@@ -158,15 +160,17 @@ fn relative(s: &Skeleton, origin: DVec3, id: NodeId) -> Vec3 {
     (s.absolute_position(id) - origin).as_vec3()
 }
 
-/// Mean of the end radii of the internode ending at `child`.
+/// Mean of the end radii of the internode ending at `child`
+/// ([`Skeleton::internode_radii`]: a lateral's first internode has its own
+/// radius, not the stem's it leaves).
 fn mean_radius(s: &Skeleton, child: NodeId) -> f32 {
-    let parent = s.parent(child).unwrap_or(child);
-    (s.radius(parent) + s.radius(child)) * 0.5
+    let (base, tip) = s.internode_radii(child);
+    (base + tip) * 0.5
 }
 
 /// For each of `of` (samples of `truth`), whether it lies inside the
 /// cylinder of a thicker internode of `truth` (axis between its end nodes,
-/// radius the mean of theirs, flat ends): wood no scan can see.
+/// radius [`mean_radius`], flat ends): wood no scan can see.
 fn hidden(truth: &Skeleton, origin: DVec3, of: &Samples) -> Vec<bool> {
     let axes = truth.internodes().map(|(p, c)| {
         let (a, b) = (relative(truth, origin, p), relative(truth, origin, c));
@@ -296,5 +300,23 @@ mod tests {
         let trunk = samples(&truth, DVec3::ZERO, 0.2);
         assert!(hidden(&truth, DVec3::ZERO, &trunk).iter().all(|h| !h));
         assert_eq!(c.visible_recall, 1.0);
+    }
+
+    #[test]
+    fn a_thin_lateral_is_not_counted_as_thick_by_the_stem_it_leaves() {
+        // Recall over branches of at least 5 cm: the 2 cm lateral does not
+        // count, its first internode included (the mean of the trunk's
+        // 0.3 m and its own 0.02 m made it a 16 cm branch).
+        let truth = trunk_with_lateral();
+        let mut trunk_only = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
+        let fork = trunk_only.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
+        trunk_only.add_child(fork, Vec3::new(0.0, 0.0, 3.0), 0.3);
+        let c = compare(&truth, &trunk_only, 0.1, 0.05);
+        assert_eq!(c.recall, 1.0);
+        assert!(
+            (c.truth_length_m - 3.0).abs() < 1e-3,
+            "{}",
+            c.truth_length_m
+        );
     }
 }

@@ -338,10 +338,8 @@ impl TreeMetrics {
 pub fn wood_volume_m3(skeleton: &Skeleton) -> f32 {
     skeleton
         .internodes()
-        .map(|(p, c)| {
-            let r2 = skeleton.radius(c);
-            let main = skeleton.children(p).first() == Some(&c);
-            let r1 = if main { skeleton.radius(p) } else { r2 };
+        .map(|(_, c)| {
+            let (r1, r2) = skeleton.internode_radii(c);
             let h = skeleton.internode_length(c);
             std::f32::consts::PI * h / 3.0 * (r1 * r1 + r1 * r2 + r2 * r2)
         })

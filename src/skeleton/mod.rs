@@ -292,6 +292,31 @@ impl Skeleton {
             .map_or(0.0, |p| self.position(p).distance(self.position(id)))
     }
 
+    /// Radii at the two ends of the internode that ends at `id`, base
+    /// first. A main extension tapers from its parent's radius to its own;
+    /// a lateral's first internode has its own radius at both ends, since
+    /// the stem it leaves holds its base (a 3 cm twig on a 30 cm trunk is
+    /// a 3 cm branch from the bark out). The root's internode is its own
+    /// radius twice.
+    ///
+    /// ```
+    /// use glam::{DVec3, Vec3};
+    /// use silva::{Anchor, NodeId, Skeleton};
+    ///
+    /// let mut tree = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
+    /// let top = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.2);
+    /// let twig = tree.add_child(NodeId::ROOT, Vec3::new(0.5, 0.0, 1.0), 0.03);
+    /// assert_eq!(tree.internode_radii(top), (0.3, 0.2));
+    /// assert_eq!(tree.internode_radii(twig), (0.03, 0.03));
+    /// ```
+    pub fn internode_radii(&self, id: NodeId) -> (f32, f32) {
+        let own = self.radius(id);
+        match self.parent(id) {
+            Some(p) if self.children(p).first() == Some(&id) => (self.radius(p), own),
+            _ => (own, own),
+        }
+    }
+
     /// The angle, in degrees, between each internode and the one before it
     /// (its parent's), for every internode whose parent is not the root;
     /// zero-length internodes are left out. A measure of how much the

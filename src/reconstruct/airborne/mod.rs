@@ -421,7 +421,9 @@ fn validate(p: &Params) -> Result<(), ReconstructError> {
 /// to 560 of 600 (oaks 101 → 135; S = 601, …, 1181 held out: 515 → 554),
 /// every tree keeping precision ≥ 0.85; at 0.58 it was 567, but six leaf-on
 /// poplars of 150 fell below precision 0.85 (one at 0.60). Leaf-on scans,
-/// S = 1, 21, …, 81: unchanged.
+/// S = 1, 21, …, 81: unchanged. (Recall as `eval::compare` measured it
+/// then, a lateral's first internode counted at the mean of its radius and
+/// its stem's; see [`crate::Skeleton::internode_radii`].)
 const BARE_CROWN_LINEARITY: f32 = 0.6;
 
 /// The contraction radius for these candidates: the parameter's, or 0 on a
