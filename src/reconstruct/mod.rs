@@ -246,13 +246,7 @@ fn run_pipeline(
         }
         Mode::Airborne => {
             let out = airborne::reconstruct_within(cloud, &opts.airborne, &opts.interrupt)?;
-            // The shared radius stage and the metrics see the tree without
-            // its ground, relative to the skeleton's anchor like the dense
-            // pipeline's output.
-            let tree = ground::split_ground(cloud)
-                .tree
-                .rebased(out.skeleton.anchor().origin);
-            (out.skeleton, tree, out.notes)
+            (out.skeleton, out.tree, out.notes)
         }
     })
 }

@@ -182,6 +182,9 @@ pub struct AirborneResult {
     pub skeleton: Skeleton,
     /// Points identified as ground and left out of the reconstruction.
     pub ground_points: usize,
+    /// The tree's points (finite, without ground), relative to the
+    /// skeleton's anchor: `tree.offset == skeleton.anchor().origin`.
+    pub tree: PointCloud,
     /// Trunk points inserted by §4.2 (the root included).
     pub trunk_points_added: usize,
     /// Human-readable remarks: ground method, trunk rule, and any flag that
@@ -256,6 +259,7 @@ pub fn reconstruct_within(
     skeleton::pipe_radii(&mut skeleton, params.tip_radius_m);
     skeleton.order_main_extension_first();
     Ok(AirborneResult {
+        tree: split.tree.rebased(skeleton.anchor().origin),
         skeleton,
         ground_points: split.ground.len(),
         trunk_points_added,
