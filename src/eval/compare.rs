@@ -256,12 +256,19 @@ mod tests {
     use super::*;
     use crate::skeleton::Anchor;
 
-    /// A 0.3 m thick trunk with a thin lateral that starts on its axis at
-    /// 1 m and leaves the bark at 45°.
-    fn trunk_with_lateral() -> Skeleton {
+    /// A 0.3 m thick trunk 3 m tall with a node at `fork_z`, returned with
+    /// it.
+    fn trunk(fork_z: f32) -> (Skeleton, NodeId) {
         let mut s = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
-        let fork = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
+        let fork = s.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, fork_z), 0.3);
         s.add_child(fork, Vec3::new(0.0, 0.0, 3.0), 0.3);
+        (s, fork)
+    }
+
+    /// [`trunk`] with a thin lateral that starts on its axis at 1 m and
+    /// leaves the bark at 45°.
+    fn trunk_with_lateral() -> Skeleton {
+        let (mut s, fork) = trunk(1.0);
         let out = s.add_child(fork, Vec3::new(1.0, 0.0, 2.0), 0.02);
         s.add_child(out, Vec3::new(2.0, 0.0, 3.0), 0.01);
         s
@@ -272,9 +279,7 @@ mod tests {
         let truth = trunk_with_lateral();
         // The reconstruction sees the trunk and the lateral from the bark
         // out, joined across the wood at right angles.
-        let mut recon = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
-        let fork = recon.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.3), 0.3);
-        recon.add_child(fork, Vec3::new(0.0, 0.0, 3.0), 0.3);
+        let (mut recon, fork) = trunk(1.3);
         let bark = recon.add_child(fork, Vec3::new(0.3, 0.0, 1.3), 0.02);
         recon.add_child(bark, Vec3::new(2.0, 0.0, 3.0), 0.01);
         let c = compare(&truth, &recon, 0.1, 0.0);
@@ -308,10 +313,7 @@ mod tests {
         // count, its first internode included (the mean of the trunk's
         // 0.3 m and its own 0.02 m made it a 16 cm branch).
         let truth = trunk_with_lateral();
-        let mut trunk_only = Skeleton::new(Anchor::at(DVec3::ZERO), 0.3);
-        let fork = trunk_only.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.3);
-        trunk_only.add_child(fork, Vec3::new(0.0, 0.0, 3.0), 0.3);
-        let c = compare(&truth, &trunk_only, 0.1, 0.05);
+        let c = compare(&truth, &trunk(1.0).0, 0.1, 0.05);
         assert_eq!(c.recall, 1.0);
         assert!(
             (c.truth_length_m - 3.0).abs() < 1e-3,
