@@ -2,6 +2,9 @@
 //! `silva::synth`: accuracy against the true skeleton, ground handling,
 //! georeference, and degenerate input.
 
+mod cloud_support;
+
+use cloud_support::turned_about_x;
 use glam::{DVec3, Vec2, Vec3};
 use proptest::prelude::*;
 use silva::cloud::{CLASS_GROUND, PointCloud};
@@ -703,19 +706,9 @@ fn a_clip_without_ground_turned_over_is_flagged() {
 #[test]
 fn a_tilted_clip_is_flagged_by_its_ground() {
     let cloud = simulate_als(&truth(Species::Birch, 3), &AlsOptions::default(), 3);
-    let centre = cloud.points.iter().copied().sum::<Vec3>() / cloud.len() as f32;
     for degrees in [0.0f32, 20.0, 30.0, 45.0] {
-        let turn = glam::Quat::from_rotation_x(degrees.to_radians());
-        let points = cloud
-            .points
-            .iter()
-            .map(|&p| turn * (p - centre) + centre)
-            .collect();
-        let result = reconstruct(
-            &PointCloud::from_points(cloud.offset, points),
-            &Params::default(),
-        )
-        .expect("a best effort");
+        let result = reconstruct(&turned_about_x(&cloud, degrees), &Params::default())
+            .expect("a best effort");
         let ground = result.notes.iter().find(|n| n.starts_with("ground:"));
         let slope = format!("terrain slope {degrees:.0}°");
         assert!(

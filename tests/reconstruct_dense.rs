@@ -2,8 +2,10 @@
 //! tree sampled on its bark with noise, and the bad inputs of issue 3.
 
 mod cli_support;
+mod cloud_support;
 
 use cli_support::{Run, silva};
+use cloud_support::turned_about_x;
 use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -694,15 +696,8 @@ fn a_plot_scan_with_its_ground_on_top_is_an_error() {
         ..TlsOptions::default()
     };
     let scan = simulate_tls(&truth, &opts, 3);
-    let centre = scan.points.iter().copied().sum::<Vec3>() / scan.len() as f32;
     for degrees in [135.0f32, 180.0] {
-        let turn = glam::Quat::from_rotation_x(degrees.to_radians());
-        let points = scan
-            .points
-            .iter()
-            .map(|&p| turn * (p - centre) + centre)
-            .collect();
-        let cloud = PointCloud::from_points(scan.offset, points);
+        let cloud = turned_about_x(&scan, degrees);
         for options in [dense(), Options::default()] {
             let result = reconstruct(&cloud, &options);
             let error = result.map(|tree| tree.notes).expect_err("an error");
