@@ -130,7 +130,9 @@ impl PointCloud {
                 .iter()
                 .map(|&p| (old + p.as_dvec3() - offset).as_vec3())
                 .collect(),
-            ..self.clone()
+            intensity: self.intensity.clone(),
+            return_number: self.return_number.clone(),
+            classification: self.classification.clone(),
         }
     }
 }
