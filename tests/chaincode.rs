@@ -7,7 +7,7 @@ use chaincode_support::{botanical_tree, random_skeleton};
 use proptest::prelude::*;
 use silva::encode::chaincode::{
     self, ChainCode, ChainError, ChainOptions, Limits, RadiusLayout, Resolution, Voxelisation,
-    decode, encode, encode_order, prune_like_lod, reduce_lod,
+    decode, decode_compressed, encode, encode_order, prune_like_lod, reduce_lod,
 };
 use silva::{NodeId, Skeleton};
 
@@ -91,14 +91,27 @@ fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
     );
     let best = code.compress();
     assert_eq!(ChainCode::decompress(&best, &limits).unwrap(), code);
+    assert_eq!(decode_compressed(&best, &limits).unwrap(), decoded);
     // Every radius layout of kind 3 round-trips; `compress` is no longer.
     for layout in RadiusLayout::ALL {
         let split = code.compress_split_with(layout).expect("encoder's order");
         assert_eq!(split[5], 3);
         assert_eq!(ChainCode::decompress(&split, &limits).unwrap(), code);
+        assert_eq!(decode_compressed(&split, &limits).unwrap(), decoded);
         assert!(best.len() <= split.len(), "{layout:?}");
     }
+    for other in [
+        code.compress_single_string(),
+        code.compress_split_v1().unwrap(),
+    ] {
+        assert_eq!(decode_compressed(&other, &limits).unwrap(), decoded);
+    }
     code
+}
+
+/// `decode_compressed` the long way: the symbols first, then the turtle.
+fn decode_in_two_steps(bytes: &[u8], limits: &Limits) -> Result<Skeleton, ChainError> {
+    ChainCode::decompress(bytes, limits).and_then(|c| decode(&c))
 }
 
 proptest! {
@@ -142,6 +155,9 @@ proptest! {
         for code in parsed.into_iter().flatten() {
             let _ = decode(&code);
         }
+        for bytes in [&bytes, &with_magic] {
+            prop_assert_eq!(decode_compressed(bytes, &limits), decode_in_two_steps(bytes, &limits));
+        }
     }
 
     #[test]
@@ -160,6 +176,9 @@ proptest! {
                 let _ = decode(&c);
                 let _ = reduce_lod(&c, 0.1);
             }
+            // The one-step decoder accepts and refuses exactly what the two
+            // steps do, with the same skeleton or the same error.
+            prop_assert_eq!(decode_compressed(&bytes, &limits), decode_in_two_steps(&bytes, &limits));
         }
     }
 }

@@ -3,11 +3,13 @@
 //! streams (kind 2 of version 1, kind 3), then the checks of
 //! `checks/chaincode.rs` on whatever it accepts. Any input must give Ok or a
 //! typed error, never a panic, a hang or an unbounded allocation; an
-//! accepted code must survive every byte form unchanged.
+//! accepted code must survive every byte form unchanged. The one-step
+//! decoder (`decode_compressed`) must give exactly what decompressing and
+//! then decoding gives: the same skeleton or the same error.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use silva::encode::chaincode::{ChainCode, Limits};
+use silva::encode::chaincode::{ChainCode, Limits, decode, decode_compressed};
 
 #[path = "../checks/chaincode.rs"]
 mod checks;
@@ -24,8 +26,11 @@ fuzz_target!(|data: &[u8]| {
     let mut framed = b"SLVC\x01".to_vec();
     framed.extend_from_slice(data);
     for bytes in [data, &framed[..]] {
-        if let Ok(code) = ChainCode::decompress(bytes, &limits) {
-            check_accepted(&code, &limits);
+        let two_steps = ChainCode::decompress(bytes, &limits);
+        if let Ok(code) = &two_steps {
+            check_accepted(code, &limits);
         }
+        let two_steps = two_steps.and_then(|code| decode(&code));
+        assert_eq!(decode_compressed(bytes, &limits), two_steps, "one-step decoder");
     }
 });

@@ -24,9 +24,9 @@ pub fn decode_stored(bytes: &[u8]) -> crate::Result<Skeleton> {
     }
     if chaincode::is_chain_code(bytes) {
         let limits = chaincode::Limits::default();
-        let code = chaincode::ChainCode::decompress(bytes, &limits)
-            .or_else(|_| chaincode::ChainCode::from_bytes(bytes, &limits))?;
-        return Ok(chaincode::decode(&code)?);
+        return Ok(chaincode::decode_compressed(bytes, &limits).or_else(|_| {
+            chaincode::ChainCode::from_bytes(bytes, &limits).and_then(|c| chaincode::decode(&c))
+        })?);
     }
     let text = std::str::from_utf8(bytes).map_err(|_| lsystem::LsError::Invalid {
         field: "document",

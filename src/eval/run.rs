@@ -279,9 +279,7 @@ fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
     };
     let bytes = chaincode::encode(skeleton, &opts).ok()?.compress();
     let limits = chaincode::Limits::default();
-    let (_, dec) = timed_median(5, || {
-        chaincode::ChainCode::decompress(&bytes, &limits).and_then(|c| chaincode::decode(&c))
-    });
+    let (_, dec) = timed_median(5, || chaincode::decode_compressed(&bytes, &limits));
     Some(ChainRow {
         code: st,
         decode_ms: dec.as_secs_f64() * 1e3,

@@ -98,9 +98,41 @@ impl<'a> BitReader<'a> {
         }
         let byte = (self.pos / 8) as usize;
         let shift = (self.pos % 8) as u32;
-        // Eight bytes hold any 32-bit read at any bit offset; near the end,
-        // the missing bytes read as zeros.
-        let word = match self.bytes.get(byte..byte + 8) {
+        // Eight bytes hold any 32-bit read at any bit offset.
+        let word = self.window(byte);
+        let end_bit = self.pos + u64::from(count);
+        if end_bit > self.bytes.len() as u64 * 8 {
+            self.overrun = true;
+        }
+        self.pos = end_bit;
+        (word << shift) >> (64 - count)
+    }
+
+    /// The next `count` bits (1 ≤ `count` ≤ 57) without consuming them;
+    /// bits past the end read as zeros.
+    #[inline]
+    pub(crate) fn peek(&self, count: u32) -> u64 {
+        debug_assert!((1..=57).contains(&count));
+        let byte = (self.pos / 8) as usize;
+        let shift = (self.pos % 8) as u32;
+        (self.window(byte) << shift) >> (64 - count)
+    }
+
+    /// Consumes `count` bits, as a read would.
+    #[inline]
+    pub(crate) fn skip(&mut self, count: u32) {
+        let end_bit = self.pos + u64::from(count);
+        if end_bit > self.bytes.len() as u64 * 8 {
+            self.overrun = true;
+        }
+        self.pos = end_bit;
+    }
+
+    /// The eight bytes from `byte` as a big-endian word; missing bytes near
+    /// the end read as zeros.
+    #[inline]
+    fn window(&self, byte: usize) -> u64 {
+        match self.bytes.get(byte..byte + 8) {
             Some(b) => u64::from_be_bytes(b.try_into().expect("eight bytes")),
             None => {
                 let mut window = [0u8; 8];
@@ -108,13 +140,7 @@ impl<'a> BitReader<'a> {
                 window[..tail.len()].copy_from_slice(tail);
                 u64::from_be_bytes(window)
             }
-        };
-        let end_bit = self.pos + u64::from(count);
-        if end_bit > self.bytes.len() as u64 * 8 {
-            self.overrun = true;
         }
-        self.pos = end_bit;
-        (word << shift) >> (64 - count)
     }
 
     /// Reads one bit.

@@ -32,9 +32,9 @@ use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
 use super::split::{Form, RadiusLayout};
 use super::{
-    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, interpolative, lod, mtf, split,
+    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, dbf6, interpolative, lod, mtf, split,
 };
-use crate::skeleton::Anchor;
+use crate::skeleton::{Anchor, Skeleton};
 use glam::{DVec3, Vec3};
 
 /// The first bytes of every chain code stream.
@@ -229,20 +229,12 @@ impl ChainCode {
     pub fn decompress(bytes: &[u8], limits: &Limits) -> Result<ChainCode, ChainError> {
         let mut cur = ByteCursor::new(bytes);
         let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
-        let form = match kind {
-            KIND_SPLIT => Form::Kind2,
-            KIND_SPLIT_3 if bytes[MAGIC.len()] >= VERSION => Form::Kind3,
-            KIND_SPLIT_3 => return Err(ChainError::Malformed("kind 3 in a version 1 stream")),
-            KIND_INTERPOLATIVE => return decompress_kind1(&mut cur, header, n_symbols, n_nodes),
-            _ => {
-                return Err(ChainError::Malformed(
-                    "not a compressed chain code; use from_bytes",
-                ));
-            }
+        let Some(form) = split_form(bytes, kind)? else {
+            return decompress_kind1(&mut cur, header, n_symbols, n_nodes);
         };
         // The payload reader has checked the symbols' grammar and the
-        // radius count (`lod::scan`), and `read_header` the header: the
-        // checks of `ChainCode::new`, not repeated here.
+        // radius count (`lod::scan_terminators`), and `read_header` the
+        // header: the checks of `ChainCode::new`, not repeated here.
         let (symbols, radii_q) = split::decompress_payload(&mut cur, n_symbols, n_nodes, form)?;
         Ok(ChainCode {
             header,
@@ -314,6 +306,49 @@ pub fn is_chain_code(bytes: &[u8]) -> bool {
 
 /// The payload of kind 1 (one interpolative code of the BWT/MTF symbol
 /// string, then one of the radius gaps) after its header.
+/// Decodes the interpolative form straight into a skeleton: the result of
+/// `decode(&ChainCode::decompress(bytes, limits)?)`, faster because the
+/// split forms (kinds 2 and 3, what [`ChainCode::compress`] writes for every
+/// encoder-made code) are decoded internode by internode without writing
+/// out the move symbols and reading them again.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::encode::chaincode::{self, ChainCode, ChainOptions, Limits};
+/// use silva::{Anchor, NodeId, Skeleton};
+///
+/// let mut tree = Skeleton::new(Anchor::at(DVec3::ZERO), 0.2);
+/// let top = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.1);
+/// tree.add_child(top, Vec3::new(0.5, 0.0, 2.5), 0.05);
+/// let bytes = chaincode::encode(&tree, &ChainOptions::default()).unwrap().compress();
+///
+/// let fast = chaincode::decode_compressed(&bytes, &Limits::default()).unwrap();
+/// let code = ChainCode::decompress(&bytes, &Limits::default()).unwrap();
+/// assert_eq!(fast, chaincode::decode(&code).unwrap());
+/// ```
+pub fn decode_compressed(bytes: &[u8], limits: &Limits) -> Result<Skeleton, ChainError> {
+    let mut cur = ByteCursor::new(bytes);
+    let (header, kind, n_symbols, n_nodes) = read_header(&mut cur, limits)?;
+    let Some(form) = split_form(bytes, kind)? else {
+        return dbf6::decode(&decompress_kind1(&mut cur, header, n_symbols, n_nodes)?);
+    };
+    let (terminators, radii_q) = split::read_payload(&mut cur, n_symbols, n_nodes, form)?;
+    dbf6::decode_terminators(&header, &radii_q, n_symbols, &terminators)
+}
+
+/// The split form of a compressed stream of `kind`; `None` for kind 1.
+fn split_form(bytes: &[u8], kind: u8) -> Result<Option<Form>, ChainError> {
+    match kind {
+        KIND_SPLIT => Ok(Some(Form::Kind2)),
+        KIND_SPLIT_3 if bytes[MAGIC.len()] >= VERSION => Ok(Some(Form::Kind3)),
+        KIND_SPLIT_3 => Err(ChainError::Malformed("kind 3 in a version 1 stream")),
+        KIND_INTERPOLATIVE => Ok(None),
+        _ => Err(ChainError::Malformed(
+            "not a compressed chain code; use from_bytes",
+        )),
+    }
+}
+
 fn decompress_kind1(
     cur: &mut ByteCursor<'_>,
     header: ChainHeader,

@@ -176,7 +176,7 @@ pub fn encode_order(skeleton: &Skeleton) -> Vec<NodeId> {
 /// and its work is linear in the number of symbols.
 pub fn decode(code: &ChainCode) -> Result<Skeleton, ChainError> {
     code.header.validate()?;
-    let mut turtle = Turtle::new(code)?;
+    let mut turtle = Turtle::new(&code.header, &code.radii_q, code.symbols.len())?;
     // The current internode's net moves and whether it has any. They stay
     // out of `Turtle` so that the loop over the moves, most of the symbols,
     // keeps them in registers (decoding took 5 % longer with them inside).
@@ -197,11 +197,41 @@ pub fn decode(code: &ChainCode) -> Result<Skeleton, ChainError> {
     turtle.finish()
 }
 
+/// Decodes a code given as its internodes' terminators (what the
+/// split-stream forms store) instead of its symbols: the same turtle as
+/// [`decode`] without a pass over the move symbols.
+pub(crate) fn decode_terminators(
+    header: &ChainHeader,
+    radii_q: &[u32],
+    n_symbols: usize,
+    terminators: &[Terminator],
+) -> Result<Skeleton, ChainError> {
+    header.validate()?;
+    let mut turtle = Turtle::new(header, radii_q, n_symbols)?;
+    for t in terminators {
+        turtle.read_terminator(t.pos, t.symbol, t.correction, t.has_moves)?;
+    }
+    turtle.finish()
+}
+
+/// One internode as its terminator sees it: the fork, tip or end `symbol`
+/// at position `pos` of the code, after moves whose net sum is `correction`
+/// (`has_moves`: whether there were any; `0 3` has moves and sums to zero).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Terminator {
+    pub(crate) pos: usize,
+    pub(crate) symbol: u8,
+    pub(crate) correction: [i32; 3],
+    pub(crate) has_moves: bool,
+}
+
 /// The decoder's state machine (`docs/chaincode.md` §4) between
 /// internodes: where it stands, on which branch, and the queued laterals.
 struct Turtle<'a> {
-    code: &'a ChainCode,
-    /// `code.radii_q`, one per node in decoding order.
+    header: &'a ChainHeader,
+    /// Length of the code in symbols.
+    n_symbols: usize,
+    /// One radius per node in decoding order.
     radii: &'a [u32],
     /// Root position relative to the anchor, voxel size and radius step,
     /// in `f64` (each node is placed from them in one rounding).
@@ -224,24 +254,28 @@ struct Turtle<'a> {
 
 impl<'a> Turtle<'a> {
     /// At the root, voxel `(0,0,0)`, which takes the first radius.
-    fn new(code: &'a ChainCode) -> Result<Self, ChainError> {
-        let header = &code.header;
-        let Some(&root_q) = code.radii_q.first() else {
+    fn new(
+        header: &'a ChainHeader,
+        radii: &'a [u32],
+        n_symbols: usize,
+    ) -> Result<Self, ChainError> {
+        let Some(&root_q) = radii.first() else {
             return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
         };
         let mut turtle = Turtle {
-            code,
-            radii: &code.radii_q,
+            header,
+            n_symbols,
+            radii,
             root: header.root_position.as_dvec3(),
             voxel_size_m: header.voxel_size_m,
             radius_step_m: f64::from(header.radius_step_m),
-            nodes: Vec::with_capacity(code.radii_q.len().min(code.symbols.len() + 1)),
+            nodes: Vec::with_capacity(radii.len().min(n_symbols + 1)),
             queue: VecDeque::new(),
             node: 0,
             voxel: [0; 3],
             history: [0; 3],
             markers_allowed: true,
-            finished: code.symbols.is_empty(),
+            finished: n_symbols == 0,
         };
         let radius_m = turtle.radius_m(root_q);
         turtle.nodes.push(Node {
@@ -322,7 +356,7 @@ impl<'a> Turtle<'a> {
                 self.history = [0; 3];
             }
             None => {
-                let left = self.code.symbols.len() - pos - 1;
+                let left = self.n_symbols - pos - 1;
                 if left > 0 {
                     return Err(ChainError::TrailingSymbols { count: left });
                 }
@@ -347,7 +381,7 @@ impl<'a> Turtle<'a> {
             });
         }
         Ok(Skeleton::from_nodes(
-            self.code.header.anchor.clone(),
+            self.header.anchor.clone(),
             self.nodes,
         )?)
     }

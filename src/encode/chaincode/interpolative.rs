@@ -97,34 +97,43 @@ pub(crate) fn decode_from(
     Some(out)
 }
 
+/// Decodes the values strictly between positions `lo_i` and `hi_i`, in the
+/// encoder's order: a range's middle value, then its left half, then its
+/// right half.
+///
+/// The right half is decoded by the loop rather than by a second call, and a
+/// half without inner values is never entered: half of all calls of the
+/// plain recursion returned at once.
 fn decode_range(
     r: &mut BitReader<'_>,
     out: &mut [u64],
-    lo_i: usize,
+    mut lo_i: usize,
     hi_i: usize,
-    lo_v: u64,
+    mut lo_v: u64,
     hi_v: u64,
     max_gap: u64,
 ) {
-    if hi_i - lo_i < 2 {
-        return;
-    }
-    if lo_v == hi_v {
-        out[lo_i..hi_i - 1].fill(lo_v);
-        return;
-    }
-    if determined(lo_i, hi_i, lo_v, hi_v, max_gap) {
-        for (k, slot) in out[lo_i..hi_i - 1].iter_mut().enumerate() {
-            *slot = lo_v + (k as u64 + 1) * max_gap;
+    while hi_i - lo_i >= 2 {
+        if lo_v == hi_v {
+            out[lo_i..hi_i - 1].fill(lo_v);
+            return;
         }
-        return;
+        if determined(lo_i, hi_i, lo_v, hi_v, max_gap) {
+            for (k, slot) in out[lo_i..hi_i - 1].iter_mut().enumerate() {
+                *slot = lo_v + (k as u64 + 1) * max_gap;
+            }
+            return;
+        }
+        let m = lo_i + (hi_i - lo_i) / 2;
+        let (low, high) = bounds(lo_i, m, hi_i, lo_v, hi_v, max_gap);
+        let v = low + read_centred(r, high - low + 1);
+        out[m - 1] = v;
+        if m - lo_i >= 2 {
+            decode_range(r, out, lo_i, m, lo_v, v, max_gap);
+        }
+        lo_i = m;
+        lo_v = v;
     }
-    let m = lo_i + (hi_i - lo_i) / 2;
-    let (low, high) = bounds(lo_i, m, hi_i, lo_v, hi_v, max_gap);
-    let v = low + read_centred(r, high - low + 1);
-    out[m - 1] = v;
-    decode_range(r, out, lo_i, m, lo_v, v, max_gap);
-    decode_range(r, out, m, hi_i, v, hi_v, max_gap);
 }
 
 /// True when every value strictly between the two ends is forced: all equal,
@@ -171,10 +180,21 @@ fn read_centred(r: &mut BitReader<'_>, size: u64) -> u64 {
     let k = 63 - size.leading_zeros();
     let short = (2u64 << k) - size;
     let shift = (size - short) / 2;
-    let mut x = r.read(k);
-    if x >= short {
-        x = ((x << 1) | r.bit()) - short;
-    }
+    let x = if k < 56 {
+        // One look at the next k + 1 bits decides the codeword's length
+        // without a second read (and without a branch the data steers).
+        let y = r.peek(k + 1);
+        let long = (y >> 1) >= short;
+        r.skip(k + u32::from(long));
+        if long { y - short } else { y >> 1 }
+    } else {
+        let x = r.read(k);
+        if x >= short {
+            ((x << 1) | r.bit()) - short
+        } else {
+            x
+        }
+    };
     let v = x + shift;
     if v >= size { v - size } else { v }
 }

@@ -15,6 +15,7 @@
 //! the decoded reduced skeleton has exactly the positions of the full one.
 //! [`prune_like_lod`] applies the same rule to a [`Skeleton`].
 
+use super::dbf6::Terminator;
 use super::{ChainCode, ChainError, END, FORK, TIP};
 use crate::skeleton::{NodeId, Skeleton};
 
@@ -82,15 +83,9 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
             });
         }
         match s {
-            0..=5 => {
-                has_moves = true;
-                scanner.open_group = None;
-            }
-            FORK if !has_moves && (scanner.open_group.is_some() || pos == 0) => {
-                scanner.fork_marker(pos);
-            }
+            0..=5 => has_moves = true,
             FORK | TIP | END => {
-                scanner.end_internode(pos, s);
+                scanner.terminator(pos, s, has_moves);
                 has_moves = false;
             }
             _ => {
@@ -100,6 +95,30 @@ pub(crate) fn scan(symbols: &[u8], n_radii: usize) -> Result<Scan, ChainError> {
                 });
             }
         }
+    }
+    scanner.finish(n_radii)
+}
+
+/// [`scan`] of a code given as its internodes' terminators, all of them
+/// fork, tip or end symbols, in a code of `n_symbols` symbols.
+pub(crate) fn scan_terminators(
+    terminators: &[Terminator],
+    n_symbols: usize,
+    n_radii: usize,
+) -> Result<Scan, ChainError> {
+    let mut scanner = Scanner::new(n_symbols == 0);
+    let mut end = 0;
+    for t in terminators {
+        if scanner.finished {
+            break;
+        }
+        scanner.terminator(t.pos, t.symbol, t.has_moves);
+        end = t.pos + 1;
+    }
+    if scanner.finished && end < n_symbols {
+        return Err(ChainError::TrailingSymbols {
+            count: n_symbols - end,
+        });
     }
     scanner.finish(n_radii)
 }
@@ -134,6 +153,15 @@ impl Scanner {
                 group: None,
             },
             finished: empty,
+        }
+    }
+
+    /// The fork, tip or end symbol `s` at `pos`, after moves or none.
+    fn terminator(&mut self, pos: usize, s: u8, has_moves: bool) {
+        if s == FORK && !has_moves && (self.open_group.is_some() || pos == 0) {
+            self.fork_marker(pos);
+        } else {
+            self.end_internode(pos, s);
         }
     }
 

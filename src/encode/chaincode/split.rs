@@ -27,6 +27,7 @@
 
 use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::container::{best_radius_mapping, cumulative, differences, unzigzag, zigzag};
+use super::dbf6::Terminator;
 use super::radii::{
     GapMapping, branch_gaps, child_gaps, parent_gaps, radii_from_child_gaps, radii_from_gaps,
     radii_from_parent_gaps,
@@ -461,6 +462,18 @@ pub(crate) fn decompress_payload(
     n_nodes: usize,
     form: Form,
 ) -> Result<(Vec<u8>, Vec<u32>), ChainError> {
+    let (terminators, radii_q) = read_payload(cur, n_symbols, n_nodes, form)?;
+    Ok((symbols_of(&terminators, n_symbols), radii_q))
+}
+
+/// Reads a split-stream payload into its internodes' terminators (checked
+/// against the grammar) and radii.
+pub(crate) fn read_payload(
+    cur: &mut ByteCursor<'_>,
+    n_symbols: usize,
+    n_nodes: usize,
+    form: Form,
+) -> Result<(Vec<Terminator>, Vec<u32>), ChainError> {
     if n_nodes == 0 {
         return Err(ChainError::RadiiCount { nodes: 1, radii: 0 });
     }
@@ -502,9 +515,9 @@ pub(crate) fn decompress_payload(
     for (stream, &centre) in corrections[0].iter_mut().zip(&centres) {
         uncentre(stream, centre);
     }
-    let symbols = join(&structure, &corrections, n_symbols, form == Form::Kind3)?;
+    let terminators = join(&structure, &corrections, n_symbols, form == Form::Kind3)?;
 
-    let scan = lod::scan(&symbols, n_nodes)?;
+    let scan = lod::scan_terminators(&terminators, n_symbols, n_nodes)?;
     let radii_q = radius_meta.read(&mut r, &scan, n_nodes)?;
     if r.overrun() {
         return Err(ChainError::Truncated);
@@ -512,7 +525,7 @@ pub(crate) fn decompress_payload(
     if r.bytes_consumed() != bit_bytes.len() {
         return Err(ChainError::Malformed("bytes after the compressed stream"));
     }
-    Ok((symbols, radii_q))
+    Ok((terminators, radii_q))
 }
 
 type Meta = (u64, u64);
@@ -757,68 +770,98 @@ fn internode_counts(structure: &[u8]) -> [usize; 2] {
     counts
 }
 
-/// Rebuilds the DBF6 symbols, never more than `n_symbols` of them.
+/// Rebuilds the internodes' terminators of a code of `n_symbols` symbols,
+/// never describing more symbols than that.
 ///
 /// With `restore_pairs` (kind 3), an internode ending at a fork with a zero
-/// correction where a fork marker could stand is written `0 3 6`, as the
-/// encoder does.
+/// correction where a fork marker could stand is the encoder's `0 3 6`.
 fn join(
     structure: &[u8],
     corrections: &Corrections,
     n_symbols: usize,
     restore_pairs: bool,
-) -> Result<Vec<u8>, ChainError> {
+) -> Result<Vec<Terminator>, ChainError> {
     let too_long = || ChainError::Malformed("streams describe more symbols than declared");
-    let mut symbols = Vec::with_capacity(n_symbols);
+    let mut terminators = Vec::with_capacity(structure.len());
+    // Symbols described so far.
+    let mut len = 0u64;
     let mut next = [0usize; 2];
     let mut branch_start = true;
     let mut markers_allowed = true;
     for &item in structure {
         if item == S_MARKER {
-            if symbols.len() >= n_symbols {
+            if len >= n_symbols as u64 {
                 return Err(too_long());
             }
-            symbols.push(FORK);
+            terminators.push(Terminator {
+                pos: len as usize,
+                symbol: FORK,
+                correction: [0; 3],
+                has_moves: false,
+            });
+            len += 1;
             continue;
         }
         let kind = usize::from(!branch_start);
         let i = next[kind];
         next[kind] += 1;
-        let mut corr = [0i64; 3];
+        let mut correction = [0i32; 3];
         let mut moves = 0u64;
-        for (axis, c) in corr.iter_mut().enumerate() {
+        for (axis, c) in correction.iter_mut().enumerate() {
             let z = corrections[kind][axis][i];
-            if z > n_symbols as u64 * 2 + 1 {
-                return Err(too_long());
-            }
-            *c = unzigzag(z);
-            moves += c.unsigned_abs();
+            *c = i32::try_from(unzigzag(z)).map_err(|_| too_long())?;
+            moves += u64::from(c.unsigned_abs());
         }
         let item = match item {
-            S_FORK if restore_pairs && markers_allowed && corr == [0; 3] => S_FORK_PAIR,
+            S_FORK if restore_pairs && markers_allowed && correction == [0; 3] => S_FORK_PAIR,
             _ => item,
         };
-        let ending = if item == S_FORK_PAIR { 3 } else { 1 };
-        if symbols.len() as u64 + moves + ending > n_symbols as u64 {
+        let symbol = match item {
+            S_FORK_PAIR if correction == [0; 3] => {
+                moves = 2;
+                FORK
+            }
+            S_FORK => FORK,
+            S_TIP => TIP,
+            S_END => END,
+            _ => return Err(ChainError::Malformed("bad structure item")),
+        };
+        len += moves;
+        if len >= n_symbols as u64 {
             return Err(too_long());
         }
-        push_moves(&mut symbols, corr);
-        match item {
-            S_FORK_PAIR if corr == [0; 3] => symbols.extend([MOVE_POS_X, MOVE_NEG_X, FORK]),
-            S_FORK => symbols.push(FORK),
-            S_TIP => symbols.push(TIP),
-            S_END => symbols.push(END),
-            _ => return Err(ChainError::Malformed("bad structure item")),
-        }
+        terminators.push(Terminator {
+            pos: len as usize,
+            symbol,
+            correction,
+            has_moves: moves > 0,
+        });
+        len += 1;
         branch_start = item == S_TIP;
         markers_allowed = item == S_FORK || item == S_FORK_PAIR;
     }
-    if symbols.len() != n_symbols {
+    if len != n_symbols as u64 {
         return Err(ChainError::Malformed(
             "streams disagree with the symbol count",
         ));
     }
-    Ok(symbols)
+    Ok(terminators)
+}
+
+/// The DBF6 symbols of a code given as its terminators: each internode's
+/// moves clustered by axis (`0 3` for a moving internode with a zero sum),
+/// then its terminator.
+fn symbols_of(terminators: &[Terminator], n_symbols: usize) -> Vec<u8> {
+    let mut symbols = Vec::with_capacity(n_symbols);
+    for t in terminators {
+        if t.has_moves && t.correction == [0; 3] {
+            symbols.extend([MOVE_POS_X, MOVE_NEG_X]);
+        } else {
+            push_moves(&mut symbols, t.correction.map(i64::from));
+        }
+        symbols.push(t.symbol);
+    }
+    symbols
 }
 
 /// Interleaves tip radii and inner increases back into per-branch gaps.
@@ -864,7 +907,7 @@ mod tests {
             false,
         )
         .unwrap();
-        assert_eq!(back, symbols);
+        assert_eq!(symbols_of(&back, symbols.len()), symbols);
         assert!(
             join(
                 &streams.structure,
@@ -884,7 +927,7 @@ mod tests {
         let structure_meta = StructureMeta::bits(&mut cur, symbols.len()).unwrap();
         let items = structure_meta.read(&mut BitReader::new(&bytes), 7).unwrap();
         let back = join(&items, &streams.corrections, symbols.len(), true).unwrap();
-        assert_eq!(back, symbols);
+        assert_eq!(symbols_of(&back, symbols.len()), symbols);
         assert!(join(&items, &streams.corrections, symbols.len(), false).is_err());
     }
 
