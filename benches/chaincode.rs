@@ -10,7 +10,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use silva::encode::chaincode::{
-    ChainCode, ChainOptions, Limits, RadiusLayout, Resolution, decode, encode,
+    ChainCode, ChainOptions, Limits, RadiusLayout, Resolution, decode, decode_compressed, encode,
 };
 
 #[allow(dead_code)]
@@ -43,6 +43,9 @@ fn chaincode(c: &mut Criterion) {
                 decode(&code).expect("valid")
             })
         });
+        group.bench_function("decode_compressed", |b| {
+            b.iter(|| decode_compressed(black_box(&packed), &limits).expect("valid"))
+        });
         group.bench_function("from_bytes+decode", |b| {
             b.iter(|| {
                 let code = ChainCode::from_bytes(black_box(&plain), &limits).expect("valid");
@@ -74,6 +77,9 @@ fn chaincode(c: &mut Criterion) {
             })
         });
     }
+    group.bench_function("decode_compressed", |b| {
+        b.iter(|| decode_compressed(black_box(&packed), &limits).expect("valid"))
+    });
     // Decompressing each radius layout of kind 3 (the same code), one run.
     for layout in RadiusLayout::ALL {
         let bytes = code

@@ -21,6 +21,7 @@
 
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
+use smallvec::SmallVec;
 
 /// Index of a node in a [`Skeleton`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -101,6 +102,9 @@ pub enum SkeletonError {
     TooLarge(usize),
 }
 
+/// A node's children, inline up to two (a chain node or a fork).
+type Children = SmallVec<[NodeId; 2]>;
+
 /// A rooted, georeferenced tree skeleton with radii. See the module docs.
 ///
 /// ```
@@ -121,7 +125,7 @@ pub struct Skeleton {
     anchor: Anchor,
     nodes: Vec<Node>,
     /// Derived from `nodes[..].parent`; kept in main-extension-first order.
-    children: Vec<Vec<NodeId>>,
+    children: Vec<Children>,
 }
 
 impl Skeleton {
@@ -134,7 +138,7 @@ impl Skeleton {
                 radius_m: root_radius_m,
                 parent: None,
             }],
-            children: vec![Vec::new()],
+            children: vec![Children::new()],
         }
     }
 
@@ -151,7 +155,7 @@ impl Skeleton {
         if nodes.len() > u32::MAX as usize {
             return Err(SkeletonError::TooLarge(nodes.len()));
         }
-        let mut children = vec![Vec::new(); nodes.len()];
+        let mut children = vec![Children::new(); nodes.len()];
         for (i, node) in nodes.iter().enumerate() {
             let finite = node.position.is_finite() && node.radius_m.is_finite();
             if !finite || node.radius_m < 0.0 {
@@ -191,7 +195,7 @@ impl Skeleton {
             radius_m,
             parent: Some(parent),
         });
-        self.children.push(Vec::new());
+        self.children.push(Children::new());
         self.children[parent.index()].push(id);
         id
     }
@@ -392,14 +396,14 @@ impl Skeleton {
     /// If `order` is not a permutation of the node's children.
     pub fn set_children_order(&mut self, id: NodeId, order: Vec<NodeId>) {
         let mut a = order.clone();
-        let mut b = self.children[id.index()].clone();
+        let mut b = self.children[id.index()].to_vec();
         a.sort();
         b.sort();
         assert_eq!(
             a, b,
             "set_children_order needs a permutation of the children"
         );
-        self.children[id.index()] = order;
+        self.children[id.index()] = Children::from_vec(order);
     }
 
     /// A copy that keeps only the nodes with `keep[i] == true` (the root is
