@@ -143,7 +143,8 @@ pub struct ChainRow {
     /// Sizes, error and levels of detail.
     #[serde(flatten)]
     pub code: chaincode::ChainStats,
-    /// Decompress + decode time, in milliseconds.
+    /// Decompress + decode time (`chaincode::decode_compressed`, bytes to
+    /// skeleton), median of 15 runs, in milliseconds.
     pub decode_ms: f64,
 }
 
@@ -271,6 +272,11 @@ pub fn encoding_figures(skeleton: &Skeleton) -> EncodingFigures {
     }
 }
 
+/// Timed decodes per chain code row (the median is reported). A decode
+/// takes 0.05–3 ms, so on a shared machine a few runs still scatter by
+/// a third between two evals; 15 cost under 50 ms per tree and resolution.
+const DECODE_RUNS: usize = 15;
+
 fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
     let st = chaincode::stats(skeleton, resolution).ok()?;
     let opts = chaincode::ChainOptions {
@@ -279,7 +285,9 @@ fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
     };
     let bytes = chaincode::encode(skeleton, &opts).ok()?.compress();
     let limits = chaincode::Limits::default();
-    let (_, dec) = timed_median(5, || chaincode::decode_compressed(&bytes, &limits));
+    let (_, dec) = timed_median(DECODE_RUNS, || {
+        chaincode::decode_compressed(&bytes, &limits)
+    });
     Some(ChainRow {
         code: st,
         decode_ms: dec.as_secs_f64() * 1e3,
