@@ -7,7 +7,7 @@ use chaincode_support::{botanical_tree, random_skeleton};
 use proptest::prelude::*;
 use silva::encode::chaincode::{
     self, ChainCode, ChainError, ChainOptions, Limits, RadiusLayout, Resolution, Voxelisation,
-    decode, decode_compressed, encode, encode_order, prune_like_lod, reduce_lod,
+    decode, decode_bytes, decode_compressed, encode, encode_order, prune_like_lod, reduce_lod,
 };
 use silva::{NodeId, Skeleton};
 
@@ -107,6 +107,24 @@ fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
         assert_eq!(decode_compressed(&other, &limits).unwrap(), decoded);
     }
     code
+}
+
+#[test]
+fn decode_bytes_reads_both_forms_and_reports_the_declared_forms_error() {
+    let s = botanical_tree(1, 300);
+    let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
+    let limits = Limits::default();
+    let decoded = decode(&code).unwrap();
+    let (plain, packed) = (code.to_bytes(), code.compress());
+    assert_eq!(decode_bytes(&plain, &limits).unwrap(), decoded);
+    assert_eq!(decode_bytes(&packed, &limits).unwrap(), decoded);
+    // Truncated: each form's own reader answers, not the other form's
+    // "not a plain/compressed chain code".
+    let cut = &packed[..packed.len() - 1];
+    assert_eq!(decode_bytes(cut, &limits), decode_compressed(cut, &limits));
+    let cut = &plain[..plain.len() - 1];
+    let err = decode_bytes(cut, &limits).unwrap_err();
+    assert_eq!(err, ChainCode::from_bytes(cut, &limits).unwrap_err());
 }
 
 /// `decode_compressed` the long way: the symbols first, then the turtle.

@@ -23,10 +23,10 @@ pub fn decode_stored(bytes: &[u8]) -> crate::Result<Skeleton> {
         return Ok(Skeleton::from_ply(bytes)?);
     }
     if chaincode::is_chain_code(bytes) {
-        let limits = chaincode::Limits::default();
-        return Ok(chaincode::decode_compressed(bytes, &limits).or_else(|_| {
-            chaincode::ChainCode::from_bytes(bytes, &limits).and_then(|c| chaincode::decode(&c))
-        })?);
+        return Ok(chaincode::decode_bytes(
+            bytes,
+            &chaincode::Limits::default(),
+        )?);
     }
     let text = std::str::from_utf8(bytes).map_err(|_| lsystem::LsError::Invalid {
         field: "document",

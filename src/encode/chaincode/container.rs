@@ -336,6 +336,17 @@ pub fn decode_compressed(bytes: &[u8], limits: &Limits) -> Result<Skeleton, Chai
     dbf6::decode_terminators(&header, &radii_q, n_symbols, &terminators)
 }
 
+/// Decodes either byte form into a skeleton, told apart by the header's
+/// kind byte: the plain form ([`ChainCode::from_bytes`], then
+/// [`decode`](super::decode)) or a compressed one ([`decode_compressed`]).
+/// An error is the one of the form the bytes declare.
+pub fn decode_bytes(bytes: &[u8], limits: &Limits) -> Result<Skeleton, ChainError> {
+    if bytes.get(MAGIC.len() + 1) == Some(&KIND_PLAIN) {
+        return dbf6::decode(&ChainCode::from_bytes(bytes, limits)?);
+    }
+    decode_compressed(bytes, limits)
+}
+
 /// The split form of a compressed stream of `kind`; `None` for kind 1.
 fn split_form(bytes: &[u8], kind: u8) -> Result<Option<Form>, ChainError> {
     match kind {

@@ -81,7 +81,9 @@ use glam::Vec3;
 use crate::skeleton::{Anchor, SkeletonError};
 
 pub use bwt::{bwt_forward, bwt_inverse};
-pub use container::{CompressedSizes, MAGIC, VERSION, decode_compressed, is_chain_code};
+pub use container::{
+    CompressedSizes, MAGIC, VERSION, decode_bytes, decode_compressed, is_chain_code,
+};
 pub use dbf6::{decode, encode, encode_order};
 pub use interpolative::{bic_decode, bic_encode};
 pub use lod::{lod_thresholds, prune_like_lod, reduce_lod};
