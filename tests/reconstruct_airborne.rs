@@ -298,6 +298,13 @@ fn reconstruct_scan(opts: &AlsOptions) -> (Skeleton, PointCloud, AirborneResult)
     (truth, cloud, result)
 }
 
+/// Which points the simulated scan labelled ground (LAS class 2); the
+/// scan must have been made with `classify_ground`.
+fn ground_labels(cloud: &PointCloud) -> Vec<bool> {
+    let classes = cloud.classification.as_ref().expect("labels");
+    classes.iter().map(|&c| c == CLASS_GROUND).collect()
+}
+
 #[test]
 fn ground_is_found_by_geometry_on_sloped_terrain_and_kept_out_of_the_skeleton() {
     let slope = Vec2::new(0.12, -0.05);
@@ -307,13 +314,7 @@ fn ground_is_found_by_geometry_on_sloped_terrain_and_kept_out_of_the_skeleton() 
         ..AlsOptions::default()
     };
     let (truth, cloud, _) = reconstruct_scan(&labelled);
-    let is_ground: Vec<bool> = cloud
-        .classification
-        .as_ref()
-        .expect("labels")
-        .iter()
-        .map(|&c| c == CLASS_GROUND)
-        .collect();
+    let is_ground = ground_labels(&cloud);
     let unlabelled = PointCloud {
         classification: None,
         ..cloud.clone()
@@ -369,13 +370,7 @@ fn classified_clips_use_class_2() {
     let (_, cloud, result) = reconstruct_scan(&opts);
     let split = split_ground(&cloud);
     assert_eq!(split.method, GroundMethod::Classification);
-    let class2 = cloud
-        .classification
-        .as_ref()
-        .unwrap()
-        .iter()
-        .filter(|&&c| c == CLASS_GROUND)
-        .count();
+    let class2 = ground_labels(&cloud).iter().filter(|&&g| g).count();
     assert_eq!(split.ground.len(), class2);
     assert_eq!(result.ground_points, class2);
     assert!(result.notes.iter().any(|n| n.contains("class 2")));
@@ -673,12 +668,11 @@ fn a_clip_without_ground_turned_over_is_flagged() {
             ..AlsOptions::default()
         };
         let cloud = simulate_als(&truth(species, seed), &opts, seed);
-        let classes = cloud.classification.as_ref().expect("labels");
         let tree: Vec<Vec3> = cloud
             .points
             .iter()
-            .zip(classes)
-            .filter(|&(_, &c)| c != CLASS_GROUND)
+            .zip(ground_labels(&cloud))
+            .filter(|&(_, ground)| !ground)
             .map(|(p, _)| *p)
             .collect();
         let turned: Vec<Vec3> = tree.iter().map(|p| p.with_z(-p.z)).collect();
