@@ -3,6 +3,7 @@
 //!
 //! Makes the tree and scan of `silva eval --synthetic N --scan tls
 //! --density 1000 --no-occlusion` (species and seed as there; with
+//! `DEFAULT_TLS=1`, the occluded 150 pts/m² scan of `--scan tls`; with
 //! `SCAN=als`, the leaf-off scan of `--scan als`), reconstructs it, samples
 //! the truth every 5 cm and sorts each sample farther than the tolerance
 //! (0.1 m; 0.5 m for ALS, where truth thinner than 5 cm does not count)
@@ -31,6 +32,13 @@
 //! right, the first 0–2.5 m of the limbs lay 0.5–0.8 m from the
 //! reconstruction; that is what leaving a bare crown's candidates on the
 //! returns (`airborne::Params::bare_crown_linearity`) mended.
+//!
+//! On the occluded default scans (`DEFAULT_TLS=1`, 2026-12-04, the ten
+//! trees of `silva eval --synthetic 10 --scan tls`, recall 0.753–0.941):
+//! 91.8–99.7 % of the missed length has no scan point on its bark (twigs
+//! under 1 cm that the scanners did not hit), and the truth that has points
+//! on its bark is recalled at 0.992–0.996, the poplars at 0.956–0.957 (the
+//! twigs along the stem, as above).
 
 use glam::Vec3;
 use silva::Anchor;
@@ -80,12 +88,16 @@ fn main() {
         };
         (simulate_als(&truth, &als, seed), Mode::Airborne, 0.5, 0.05)
     } else {
-        let clean = TlsOptions {
-            points_per_m2: 1000.0,
-            occlusion: false,
-            ..TlsOptions::default()
+        let tls = if std::env::var_os("DEFAULT_TLS").is_some() {
+            TlsOptions::default()
+        } else {
+            TlsOptions {
+                points_per_m2: 1000.0,
+                occlusion: false,
+                ..TlsOptions::default()
+            }
         };
-        (simulate_tls(&truth, &clean, seed), Mode::Dense, 0.1, 0.0)
+        (simulate_tls(&truth, &tls, seed), Mode::Dense, 0.1, 0.0)
     };
     let opts = Options {
         mode,
@@ -156,6 +168,16 @@ fn main() {
             );
         }
     }
+    let (covered_missed, covered_total) = table
+        .iter()
+        .filter(|((_, _, covered), _)| *covered)
+        .fold((0.0, 0.0), |(m, t), (_, v)| (m + v.0, t + v.1));
+    println!(
+        "truth with points on its bark: {covered_total:.1} m, recall {:.4}; {:.1} % of the \
+         missed length has no point on its bark",
+        1.0 - covered_missed / covered_total,
+        100.0 * (missed - covered_missed) / missed
+    );
     if let Some(path) = args.get(3) {
         std::fs::write(path, csv).expect("write csv");
         if std::env::var_os("DUMP").is_some() {
