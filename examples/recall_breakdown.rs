@@ -127,7 +127,9 @@ fn main() {
             continue;
         }
         let radius = truth.radius(s.node);
-        let points = p_index.within(s.at, radius + 0.02).len();
+        let points = p_index
+            .within(s.at, radius + silva::eval::compare::BARK_MARGIN_M)
+            .len();
         let class = match radius {
             x if x < 0.01 => 0,
             x if x < 0.02 => 1,

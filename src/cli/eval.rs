@@ -290,6 +290,10 @@ fn columns() -> Vec<Column<TreeRow>> {
             cell: |r| r.truth.as_ref().map(|t| pct(t.visible_recall)),
         },
         Column {
+            header: "scan_rec%",
+            cell: |r| r.truth.as_ref().and_then(|t| t.scanned_recall.map(pct)),
+        },
+        Column {
             header: "prec%",
             cell: |r| r.truth.as_ref().map(|t| pct(t.precision)),
         },

@@ -20,15 +20,27 @@
 //! truth out (a sample inside the cylinder of a thicker truth internode) as
 //! a diagnostic of what the data can show; `recall` stays the figure of
 //! record.
+//!
+//! A scan also misses what its scanners never hit: on an occluded
+//! terrestrial scan most thin twigs carry no point. Given the scan,
+//! [`compare_scanned`] also reports the recall over the truth that has a
+//! scan point on its bark ([`SkeletonComparison::scanned_recall`]): what
+//! the pipeline made of the data it had.
 
 use glam::{DVec3, Vec3};
 
+use crate::cloud::PointCloud;
 use crate::skeleton::{NodeId, Skeleton};
 use crate::spatial::PointIndex;
 
 /// Spacing of the samples along internodes, in metres. Distances are
 /// measured between samples, so they overestimate by at most half of this.
 pub const SAMPLE_STEP_M: f32 = 0.05;
+
+/// A truth sample is *scanned* when a scan point lies within its
+/// internode's radius (at the child end) plus this margin, in metres: bark
+/// seen through millimetres of noise, between points centimetres apart.
+pub const BARK_MARGIN_M: f32 = 0.02;
 
 /// The comparison of a reconstruction with its truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,6 +68,13 @@ pub struct SkeletonComparison {
     pub recon_length_m: f32,
     /// The tolerance used, in metres.
     pub tolerance_m: f32,
+    /// Recall over the (radius-filtered) truth that has a scan point on its
+    /// bark ([`BARK_MARGIN_M`]); `None` without a scan ([`compare`]) or
+    /// when no truth has a point on its bark. A diagnostic, not a target.
+    pub scanned_recall: Option<f32>,
+    /// Share of the radius-filtered truth length that has a scan point on
+    /// its bark; `None` without a scan.
+    pub scanned_share: Option<f32>,
 }
 
 /// Compares `recon` with `truth` (module docs).
@@ -81,6 +100,52 @@ pub fn compare(
     tolerance_m: f32,
     min_truth_radius_m: f32,
 ) -> SkeletonComparison {
+    compare_with(truth, recon, None, tolerance_m, min_truth_radius_m)
+}
+
+/// [`compare`], and the recall over the truth that `scan` (the cloud the
+/// reconstruction was made from) has points on (module docs).
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::eval::compare::compare_scanned;
+/// use silva::{Anchor, NodeId, Skeleton};
+///
+/// // A 2 m trunk with a 1 m lateral; the scan saw the trunk's far side only.
+/// let mut truth = Skeleton::new(Anchor::at(DVec3::ZERO), 0.1);
+/// let top = truth.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.1);
+/// truth.add_child(top, Vec3::new(1.0, 0.0, 2.0), 0.02);
+/// let bark = (0..200).map(|i| Vec3::new(-0.1, 0.0, i as f32 * 0.01)).collect();
+/// let scan = PointCloud::from_points(DVec3::ZERO, bark);
+/// let mut recon = Skeleton::new(Anchor::at(DVec3::ZERO), 0.1);
+/// recon.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 2.0), 0.1);
+///
+/// let c = compare_scanned(&truth, &recon, &scan, 0.1, 0.0);
+/// assert!((c.recall - 2.0 / 3.0).abs() < 0.05);
+/// assert_eq!(c.scanned_recall, Some(1.0));
+/// assert!((c.scanned_share.unwrap() - 2.0 / 3.0).abs() < 0.05);
+/// // Without the scan, the same figures and none on scanned truth.
+/// let plain = silva::eval::compare::compare(&truth, &recon, 0.1, 0.0);
+/// assert_eq!((plain.recall, plain.scanned_recall), (c.recall, None));
+/// ```
+pub fn compare_scanned(
+    truth: &Skeleton,
+    recon: &Skeleton,
+    scan: &PointCloud,
+    tolerance_m: f32,
+    min_truth_radius_m: f32,
+) -> SkeletonComparison {
+    compare_with(truth, recon, Some(scan), tolerance_m, min_truth_radius_m)
+}
+
+fn compare_with(
+    truth: &Skeleton,
+    recon: &Skeleton,
+    scan: Option<&PointCloud>,
+    tolerance_m: f32,
+    min_truth_radius_m: f32,
+) -> SkeletonComparison {
     // Work relative to the truth's anchor, in f32 (sub-mm for tree sizes).
     let origin = truth.anchor().origin;
     let truth_all = samples(truth, origin, 0.0);
@@ -90,13 +155,17 @@ pub fn compare(
     let to_truth = distances(&recon_all.at, &truth_all.at);
     let within = |d: &[f32]| share(d.iter().map(|&x| x <= tolerance_m));
     let hidden = hidden(truth, origin, &truth_thick);
-    let visible_recall = share(
-        to_recon
-            .iter()
-            .zip(&hidden)
-            .filter(|&(_, &h)| !h)
-            .map(|(&d, _)| d <= tolerance_m),
-    );
+    let recall_where = |counted: &[bool]| {
+        share(
+            to_recon
+                .iter()
+                .zip(counted)
+                .filter(|&(_, &c)| c)
+                .map(|(&d, _)| d <= tolerance_m),
+        )
+    };
+    let visible: Vec<bool> = hidden.iter().map(|&h| !h).collect();
+    let scanned = scan.map(|cloud| scanned(truth, origin, cloud, &truth_thick));
     let mut all: Vec<f32> = to_recon.iter().chain(&to_truth).copied().collect();
     all.sort_by(f32::total_cmp);
     let mean = if all.is_empty() {
@@ -111,14 +180,36 @@ pub fn compare(
     SkeletonComparison {
         recall: within(&to_recon),
         precision: within(&to_truth),
-        visible_recall,
+        visible_recall: recall_where(&visible),
         hidden_share: share(hidden.iter().copied()),
         mean_distance_m: mean,
         p95_distance_m: p95,
         truth_length_m: length(truth, min_truth_radius_m),
         recon_length_m: recon.total_length(),
         tolerance_m,
+        scanned_recall: scanned
+            .as_deref()
+            .filter(|s| s.contains(&true))
+            .map(recall_where),
+        scanned_share: scanned.as_deref().map(|s| share(s.iter().copied())),
     }
+}
+
+/// For each of `of` (samples of `truth`), whether a point of `scan` lies
+/// on its bark: within its internode's radius plus [`BARK_MARGIN_M`].
+fn scanned(truth: &Skeleton, origin: DVec3, scan: &PointCloud, of: &Samples) -> Vec<bool> {
+    let shift = (scan.offset - origin).as_vec3();
+    let points: Vec<Vec3> = scan.points.iter().map(|&p| p + shift).collect();
+    let index = PointIndex::new(&points);
+    of.at
+        .iter()
+        .zip(&of.internode)
+        .map(|(&p, &own)| {
+            index
+                .nearest(p)
+                .is_some_and(|n| n.distance_sq.sqrt() <= truth.radius(own) + BARK_MARGIN_M)
+        })
+        .collect()
 }
 
 /// Points along a skeleton's internodes, each with the internode (named by

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::compare::{SkeletonComparison, compare};
+use super::compare::{SkeletonComparison, compare_scanned};
 use super::fit::{SurfaceFit, surface_fit};
 use super::mesh_fit::mesh_fit;
 use super::report::{Source, timed_median};
@@ -58,6 +58,14 @@ pub struct TruthFigures {
     pub visible_recall: f32,
     /// Share of the radius-filtered truth length inside thicker truth wood.
     pub hidden_share: f32,
+    /// Recall over the truth that has a point of the scan on its bark
+    /// (`compare::SkeletonComparison::scanned_recall`): what the pipeline
+    /// made of what the scanners hit. A diagnostic; `None` when no truth
+    /// has a scan point on its bark (an airborne clip often has none).
+    pub scanned_recall: Option<f32>,
+    /// Share of the radius-filtered truth length with a scan point on its
+    /// bark.
+    pub scanned_share: f32,
     /// Mean symmetric skeleton distance, in metres.
     pub mean_distance_m: f32,
     /// 95th percentile of the symmetric skeleton distance, in metres.
@@ -225,7 +233,7 @@ fn fill(
     row.nodes = rec.skeleton.len();
     row.metrics = Some(rec.metrics.clone());
     row.notes = rec.notes.clone();
-    row.truth = truth.map(|t| truth_figures(t, rec, opts));
+    row.truth = truth.map(|t| truth_figures(t, rec, cloud, opts));
     if rec.mode == Mode::Dense {
         // The fit is the tree's: a plot scan's ground is no cylinder's, and
         // the dense pipeline leaves it out (`reconstruct::dense`, step 0).
@@ -294,10 +302,16 @@ fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
     })
 }
 
-fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> TruthFigures {
-    let c: SkeletonComparison = compare(
+fn truth_figures(
+    truth: &Skeleton,
+    rec: &Reconstruction,
+    scan: &PointCloud,
+    opts: &EvalOptions,
+) -> TruthFigures {
+    let c: SkeletonComparison = compare_scanned(
         truth,
         &rec.skeleton,
+        scan,
         opts.tolerance_m,
         opts.min_truth_radius_m,
     );
@@ -310,6 +324,8 @@ fn truth_figures(truth: &Skeleton, rec: &Reconstruction, opts: &EvalOptions) -> 
         precision: c.precision,
         visible_recall: c.visible_recall,
         hidden_share: c.hidden_share,
+        scanned_recall: c.scanned_recall,
+        scanned_share: c.scanned_share.expect("compare_scanned sets it"),
         mean_distance_m: c.mean_distance_m,
         p95_distance_m: c.p95_distance_m,
         height_error_m: rec.metrics.height_m

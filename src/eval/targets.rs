@@ -116,6 +116,8 @@ mod tests {
             precision,
             visible_recall: recall,
             hidden_share: 0.0,
+            scanned_recall: Some(recall),
+            scanned_share: 1.0,
             mean_distance_m: 0.1,
             p95_distance_m: 0.2,
             height_error_m,
