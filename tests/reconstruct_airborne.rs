@@ -658,11 +658,20 @@ fn bare_leaf_off_crowns_are_not_contracted() {
 /// A clip cut without its ground and turned over (here by dropping the
 /// returns of class 2) has no terrain to tell which way is up; its crown's
 /// top, hit all round and most, now lies at the bottom, and the
-/// reconstruction says so. Upright, the same clips get no such note. (Pines,
-/// whose crowns reach down, are often not flagged: `upright::seen_from_below`.)
+/// reconstruction says so. Upright, the same clips get no such note. The
+/// pines' crowns reach down, so their lowest tenth holds nearly as many
+/// returns as the top; they are flagged because the top, now at the bottom,
+/// is seen from far more sides (`upright::seen_from_below`; pine 2 is not).
 #[test]
 fn a_clip_without_ground_turned_over_is_flagged() {
-    for (species, seed) in [(Species::Oak, 4), (Species::Birch, 5), (Species::Poplar, 6)] {
+    for (species, seed) in [
+        (Species::Oak, 4),
+        (Species::Birch, 5),
+        (Species::Poplar, 6),
+        (Species::Pine, 3),
+        (Species::Pine, 5),
+        (Species::Pine, 6),
+    ] {
         let opts = AlsOptions {
             classify_ground: true,
             ..AlsOptions::default()
