@@ -701,6 +701,44 @@ fn a_clip_without_ground_turned_over_is_flagged() {
     }
 }
 
+/// A sparse terrestrial scan (40 points/m² of bark, as `silva synth --scan
+/// tls --density 40`) turned over: its twigs lie at the bottom, so
+/// `Mode::Auto` sends it to this pipeline, whose upside-down test finds the
+/// stem ring of its bark at the top and rejects it, saying which way silva
+/// takes as up. Upright, it reconstructs without such a note.
+#[test]
+fn a_sparse_terrestrial_scan_turned_over_is_rejected() {
+    for (species, seed) in [(Species::Oak, 5), (Species::Poplar, 19)] {
+        let tls = silva::synth::TlsOptions {
+            points_per_m2: 40.0,
+            ..silva::synth::TlsOptions::default()
+        };
+        let cloud = silva::synth::simulate_tls(&truth(species, seed), &tls, seed);
+        let turned = PointCloud::from_points(
+            cloud.offset,
+            cloud
+                .points
+                .iter()
+                .map(|p| Vec3::new(p.x, -p.y, -p.z))
+                .collect(),
+        );
+        let auto = Options::default();
+        let upright = silva::reconstruct::reconstruct(&cloud, &auto).expect("a tree");
+        assert!(
+            !upright.notes.iter().any(|n| n.contains("upside down")),
+            "{species:?} {seed}: {:?}",
+            upright.notes
+        );
+        match silva::reconstruct::reconstruct(&turned, &auto) {
+            Ok(tree) => panic!("{species:?} {seed} turned over: {:?}", tree.notes),
+            Err(e) => assert!(
+                e.to_string().contains("upside down") && e.to_string().contains("z axis"),
+                "{species:?} {seed}: {e}"
+            ),
+        }
+    }
+}
+
 /// A clip turned about a horizontal axis carries its ground along: the
 /// terrain fit finds it at the turn's angle (at 30° and 45° too, where a
 /// 1 m cell spans more than the ground tolerance in z), keeps it out of the

@@ -459,9 +459,17 @@ fn contraction_radius(candidates: &[Vec3], params: &Params, notes: &mut Vec<Stri
 
 /// Points closer than this (metres) belong to one piece of bark in the
 /// upside-down test of a terrestrial cloud sent to this pipeline
-/// ([`super::upright`]): such a cloud's points lie at most 0.08 m apart
-/// (`AutoThresholds::max_dense_spacing_m`), an AHN clip's 0.2–0.3 m.
-const STEM_LINK_M: f32 = 0.1;
+/// ([`super::upright`]). Sparse terrestrial scans (`silva synth --scan tls
+/// --density 40`, seeds 1–20), which `Mode::Auto` sends here when turned
+/// over, have median point spacings of 0.09–0.13 m: at 0.1 m their trunk's
+/// bark fell apart into pieces too small to fit a ring, and 8 of the 20
+/// turned over were rejected; at 0.15 m, 12 (the misses are birches and
+/// pines, whose trunk slice holds under 30 points), none upright. Airborne
+/// points do not ring a stem at this link either (ahn3_delft's lie 0.22 m
+/// apart, the synthetic AHN-like clips' about 0.14 m): the report of
+/// `silva eval --synthetic 100 --scan als` is the same at 0.1 and 0.15 m,
+/// and ahn3_delft and tiny are rejected or flagged at the same turns.
+const STEM_LINK_M: f32 = 0.15;
 
 /// Rejects tree points that lie on one line or one plane (principal
 /// component spreads below [`MIN_SPREAD_M`]).
