@@ -50,6 +50,29 @@
 //! 33 m): thin branches made of a one-sided stem's own bark. The clean
 //! scans of oak 1 and poplar 3 (precision 0.992 and 0.993) have 12.3 and
 //! 0.6 m of it.
+//!
+//! A closer look (`DUMP=1`, plotted; 2026-12-04): on oak 1 the thick part
+//! is the trunk itself. At 150 pts/m² the point spacing is 4.3 cm and a bin
+//! 3 cm, so a 0.42 m trunk's bins fall into pieces of bark that the 1-bin
+//! ring window does not join: the trunk's chain zigzags up to 0.4 m off the
+//! axis between ring centres and bark pieces, and the pieces sprout spurs.
+//! The `dense::Params` that bear on it, set one at a time on the ten
+//! trees (reconstructed in `Mode::Dense`, compared at 0.1 m; median recall
+//! / precision 0.861 / 0.859 occluded, 0.997 / 0.995 clean):
+//! `ring_window_bins` 3 straightens the trunk (occluded 0.853 / 0.932, clean
+//! 0.996 / 0.994) but the poplars lose 4–6 points of recall (twigs along the
+//! stem join its ring) and `silva eval --data` falls on tree1 from 82.4 to
+//! 75.7 % of points within 2 cm, on tree13 from 69.5 to 62.5 % (2 bins:
+//! 79.3, 66.0); `bin_spacings` 1.0 gives 0.852 / 0.917; `stem_stub_spreads`
+//! 2 gives 0.848 / 0.872; a second, 3-bin window for sections spreading 0.3
+//! m or more raises the oaks' and poplars' precision by 1–3 points at no
+//! recall, but tree13 loses 1.1 points; `detour_max_nodes` 4 or
+//! `detour_thin_share` 0.8 move nothing by 0.2 points. So none went in.
+//! The twig tips' part (birch 2: 74 of its 112 m off the truth lies on thin
+//! tip internodes) is mostly internodes of about 0.6 m whose two ends lie
+//! on different truth twigs (the path along the truth between them at
+//! least 3 times longer); dropping tips whose line passes more than 0.25 m
+//! from every scan point would remove 42 m off the truth and 44 m on it.
 
 use glam::Vec3;
 use silva::Anchor;
