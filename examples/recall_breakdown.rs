@@ -73,6 +73,12 @@
 //! on different truth twigs (the path along the truth between them at
 //! least 3 times longer); dropping tips whose line passes more than 0.25 m
 //! from every scan point would remove 42 m off the truth and 44 m on it.
+//! Those hops come from the graph: a sparsely hit twig's nearest neighbours
+//! lie on the next twig. Cutting its links at 10 point spacings instead of
+//! 20 (`dense::Params::max_edge_spacings`, the pieces joined again by one
+//! bridge each) took birch 2 to precision 0.937 and recall 0.765, and the
+//! 20 default scans of `silva eval --synthetic 20` to a median precision
+//! of 0.919 (0.860 before) at a recall of 0.853 (0.862).
 
 use glam::Vec3;
 use silva::Anchor;

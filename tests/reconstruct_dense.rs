@@ -444,6 +444,42 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
     assert!(before < 0.96, "precision without the spur rule {before}");
 }
 
+/// The default, occluded terrestrial scan of a synthetic birch (`silva eval
+/// --synthetic` seed 2, 150 points/m² of bark): its twigs are hit every
+/// decimetre or so, and a twig's nearest neighbours reach across to the next
+/// twig. With graph links up to 20 point spacings, shortest paths hopped
+/// between twigs and the skeleton drew internodes through the air; cut at
+/// 10 (pieces joined again by one bridge each), it follows the twigs.
+#[test]
+fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
+    use silva::eval::compare::compare;
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Birch),
+        2,
+        silva::Anchor::at(OFFSET),
+    );
+    let cloud = simulate_tls(&truth, &TlsOptions::default(), 2);
+    let figures = |opts: &Options| {
+        let tree = reconstruct(&cloud, opts).unwrap();
+        let c = compare(&truth, &tree.skeleton, 0.1, 0.0);
+        (c.recall, c.precision)
+    };
+    let (recall, precision) = figures(&dense());
+    let mut long_links = dense();
+    long_links.dense.max_edge_spacings = 20.0;
+    let (recall_before, precision_before) = figures(&long_links);
+    assert!(precision > 0.92, "precision {precision}");
+    assert!(
+        precision_before < 0.88,
+        "precision with long links {precision_before}"
+    );
+    assert!(
+        recall >= recall_before,
+        "recall {recall} against {recall_before}"
+    );
+}
+
 /// An occluded terrestrial scan of a thick poplar trunk (the default scan of
 /// `silva eval --synthetic` seed 3) with the bark-detour step off, so that
 /// the main chain zigzags out to the bark as it did before that step: the
