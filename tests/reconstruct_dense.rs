@@ -423,6 +423,28 @@ fn clean_poplar_scan() -> (Skeleton, PointCloud) {
     (truth, cloud)
 }
 
+/// Recall and precision at 0.1 m of the reconstruction of `cloud` with
+/// `opts`, against `truth`.
+fn recall_precision(truth: &Skeleton, cloud: &PointCloud, opts: &Options) -> (f32, f32) {
+    let tree = reconstruct(cloud, opts).unwrap();
+    let c = silva::eval::compare::compare(truth, &tree.skeleton, 0.1, 0.0);
+    (c.recall, c.precision)
+}
+
+/// The synthetic tree of `silva eval --synthetic` (species and seed as
+/// there) and its default terrestrial scan: 150 points/m² of bark, seen
+/// from the scanner positions, with occlusion.
+fn default_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointCloud) {
+    use silva::synth::{TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(species),
+        seed,
+        silva::Anchor::at(OFFSET),
+    );
+    let cloud = simulate_tls(&truth, &TlsOptions::default(), seed);
+    (truth, cloud)
+}
+
 /// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
 /// `silva eval --synthetic` seed 3): its thick trunk's ring breaks into
 /// pieces of bark at ragged distance fronts, and without the spur rule each
@@ -430,16 +452,11 @@ fn clean_poplar_scan() -> (Skeleton, PointCloud) {
 /// away from every true branch.
 #[test]
 fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
-    use silva::eval::compare::compare;
     let (truth, cloud) = clean_poplar_scan();
-    let precision = |opts: &Options| {
-        let tree = reconstruct(&cloud, opts).unwrap();
-        compare(&truth, &tree.skeleton, 0.1, 0.0).precision
-    };
-    let now = precision(&dense());
+    let (_, now) = recall_precision(&truth, &cloud, &dense());
     let mut without = dense();
     without.dense.spur_spread_bins = f32::INFINITY;
-    let before = precision(&without);
+    let (_, before) = recall_precision(&truth, &cloud, &without);
     assert!(now > 0.97, "precision {now}");
     assert!(before < 0.96, "precision without the spur rule {before}");
 }
@@ -452,23 +469,11 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
 /// 10 (pieces joined again by one bridge each), it follows the twigs.
 #[test]
 fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
-    use silva::eval::compare::compare;
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    let truth = generate(
-        &TreeParams::preset(Species::Birch),
-        2,
-        silva::Anchor::at(OFFSET),
-    );
-    let cloud = simulate_tls(&truth, &TlsOptions::default(), 2);
-    let figures = |opts: &Options| {
-        let tree = reconstruct(&cloud, opts).unwrap();
-        let c = compare(&truth, &tree.skeleton, 0.1, 0.0);
-        (c.recall, c.precision)
-    };
-    let (recall, precision) = figures(&dense());
+    let (truth, cloud) = default_scan(silva::synth::Species::Birch, 2);
+    let (recall, precision) = recall_precision(&truth, &cloud, &dense());
     let mut long_links = dense();
     long_links.dense.max_edge_spacings = 20.0;
-    let (recall_before, precision_before) = figures(&long_links);
+    let (recall_before, precision_before) = recall_precision(&truth, &cloud, &long_links);
     assert!(precision > 0.92, "precision {precision}");
     assert!(
         precision_before < 0.88,
@@ -490,13 +495,7 @@ fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
 #[test]
 fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
     use silva::eval::run::trunk_radius_at;
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    let truth = generate(
-        &TreeParams::preset(Species::Poplar),
-        3,
-        silva::Anchor::at(OFFSET),
-    );
-    let cloud = simulate_tls(&truth, &TlsOptions::default(), 3);
+    let (truth, cloud) = default_scan(silva::synth::Species::Poplar, 3);
     let mut zigzag = dense();
     zigzag.dense.detour_thin_share = 0.0;
     let tree = reconstruct(&cloud, &zigzag).unwrap();
@@ -519,17 +518,11 @@ fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
 /// wood as well.
 #[test]
 fn a_poplars_branches_start_on_the_trunks_axis() {
-    use silva::eval::compare::compare;
     let (truth, cloud) = clean_poplar_scan();
-    let recall_precision = |opts: &Options| {
-        let tree = reconstruct(&cloud, opts).unwrap();
-        let c = compare(&truth, &tree.skeleton, 0.1, 0.0);
-        (c.recall, c.precision)
-    };
-    let (recall, precision) = recall_precision(&dense());
+    let (recall, precision) = recall_precision(&truth, &cloud, &dense());
     let mut at_the_bark = dense();
     at_the_bark.dense.lateral_base_spread_bins = f32::INFINITY;
-    let (recall_before, precision_before) = recall_precision(&at_the_bark);
+    let (recall_before, precision_before) = recall_precision(&truth, &cloud, &at_the_bark);
     assert!(
         recall > recall_before + 0.01,
         "recall {recall} against {recall_before} with laterals starting at the bark"
