@@ -194,11 +194,8 @@ pub(super) fn bridge_components(
     near_m: f32,
 ) -> Vec<Bridge> {
     let mut members: Vec<Vec<u32>> = vec![Vec::new(); sizes.len()];
-    // Labels beyond `sizes` (dropped specks) take no part.
     for (i, &l) in labels.iter().enumerate() {
-        if let Some(m) = members.get_mut(l as usize) {
-            m.push(i as u32);
-        }
+        members[l as usize].push(i as u32);
     }
     let mut newcomers: Vec<u32> = std::mem::take(&mut members[0]);
     // Each pending component's closest pair (joined, member, length) so far.
