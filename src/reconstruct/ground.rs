@@ -65,6 +65,13 @@ const BARE_CLEARANCE_M: f64 = 1.0;
 /// level.
 const MIN_GROUND_CELL_SHARE: f64 = 0.25;
 
+/// Largest share of the points that may lie more than
+/// [`BELOW_GROUND_NOISE_M`] below a surface for it to be the ground: a few
+/// below-ground returns are noise, but the tree stands on its ground, so a
+/// surface with a trunk under it is the underside of a crown (a birch's
+/// drooping twig ends 4–5 m up, around a bare stem, look like open ground).
+const MAX_BELOW_GROUND_SHARE: f64 = 0.01;
+
 /// Terrain slope (degrees) from which [`GroundSplit::steep_note`] warns of
 /// a tilted cloud. Synthetic AHN-like clips on level ground fit 0°; turned
 /// by 20–45° about a horizontal axis, their terrain fits at the turn's
@@ -99,6 +106,9 @@ pub struct Terrain {
     /// Terrain cells that are open ground: enough points in a ground layer
     /// with clear air above it (see [`count_bare_cells`]).
     bare_cells: usize,
+    /// Points more than [`BELOW_GROUND_NOISE_M`] below the surface, and
+    /// all the points the surface was fitted to.
+    deep_below: (usize, usize),
     /// Per terrain cell: the mean height of its ground returns (those within
     /// the ground tolerance of its lowest) minus the plane (see
     /// [`Terrain::surface_at`]).
@@ -173,14 +183,17 @@ impl Terrain {
     }
 
     /// True when the surface is ground rather than the underside of a
-    /// crown: it covers [`MIN_GROUND_CELL_SHARE`] of the clip, and a quarter
+    /// crown: it covers [`MIN_GROUND_CELL_SHARE`] of the clip, a quarter
     /// of its cells are bare (open ground around the tree; the bottom layer
-    /// of a crown always has foliage above its lowest points).
+    /// of a crown always has foliage above its lowest points), and hardly
+    /// any points lie far below it ([`MAX_BELOW_GROUND_SHARE`]).
     pub(crate) fn is_ground(&self) -> bool {
         let (_, terrain) = self.cells;
+        let (below, points) = self.deep_below;
         f64::from(self.cell_share()) >= MIN_GROUND_CELL_SHARE
             && self.bare_cells >= 3
             && self.bare_cells * 4 >= terrain
+            && below as f64 <= MAX_BELOW_GROUND_SHARE * points as f64
     }
 }
 
@@ -321,14 +334,20 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         .collect();
     let bare_cells = count_bare_cells(points, origin, plane, &residual_m);
     let surface_m = mean_ground(points, origin, plane, &residual_m);
-    Some(Terrain {
+    let mut terrain = Terrain {
         plane,
         bare_cells,
+        deep_below: (0, points.len()),
         surface_m,
         cells: (candidates.len(), residual_m.len()),
         residual_m,
         origin,
-    })
+    };
+    terrain.deep_below.0 = points
+        .iter()
+        .filter(|p| p.z - terrain.height_at(p.x, p.y) < -BELOW_GROUND_NOISE_M)
+        .count();
+    Some(terrain)
 }
 
 /// What [`fit_terrain`] keeps of the points in one grid cell.
