@@ -758,6 +758,46 @@ fn a_zigzagging_trunk_chain_does_not_smear_the_dbh_slice() {
     );
 }
 
+/// Returns the producer classified as noise (LAS classes 7 and 18) around
+/// the trunk at breast height: ignored, with a note, so that the DBH and
+/// the skeleton are those of the scan without them. Left in, the same
+/// returns change the skeleton.
+#[test]
+fn returns_classified_as_noise_are_ignored() {
+    let tree_points = scan(&y_tree(), 0.02, 7);
+    let clean = PointCloud::from_points(OFFSET, tree_points.clone());
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let noise: Vec<Vec3> = (0..400)
+        .map(|_| {
+            let (s, c) = (rng.random::<f32>() * std::f32::consts::TAU).sin_cos();
+            let r = 0.2 + 0.5 * rng.random::<f32>();
+            Vec3::new(r * c, r * s, 0.5 + 2.0 * rng.random::<f32>())
+        })
+        .collect();
+    let noise_classes = (0..noise.len()).map(|i| if i % 2 == 0 { 7 } else { 18 });
+    let mut noisy = PointCloud::from_points(OFFSET, [tree_points, noise].concat());
+    noisy.classification = Some(
+        vec![1; clean.len()]
+            .into_iter()
+            .chain(noise_classes)
+            .collect(),
+    );
+    let expected = reconstruct(&clean, &dense()).unwrap();
+    let ignored = reconstruct(&noisy, &dense()).unwrap();
+    assert!(
+        ignored
+            .notes
+            .contains(&"400 points classified as noise ignored (LAS classes 7 and 18)".into()),
+        "{:?}",
+        ignored.notes
+    );
+    assert_eq!(ignored.skeleton.len(), expected.skeleton.len());
+    assert_eq!(ignored.metrics.dbh_m, expected.metrics.dbh_m);
+    noisy.classification = None;
+    let kept = reconstruct(&noisy, &dense()).unwrap();
+    assert_ne!(kept.skeleton.len(), expected.skeleton.len());
+}
+
 /// The default occluded scan of a synthetic silver birch (the `silva eval
 /// --synthetic` seed 50), cut out of its plot without ground: the ends of
 /// its drooping twigs, 4–5 m up around a bare stem, look like open ground

@@ -116,6 +116,33 @@ fn mean_neighbour_distance(index: &PointIndex, i: usize, p: Vec3, k: usize) -> f
     sum / k as f64
 }
 
+/// The cloud without the points its producer classified as noise
+/// ([`super::CLASSES_NOISE`]: LAS classes 7 and 18) and how many those
+/// were, or `None` when the cloud has none (or no classification).
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::remove_classified_noise;
+///
+/// let mut cloud = PointCloud::from_points(DVec3::ZERO, vec![Vec3::ZERO, Vec3::Z, Vec3::X]);
+/// cloud.classification = Some(vec![1, 7, 2]);
+/// let (kept, noise) = remove_classified_noise(&cloud).unwrap();
+/// assert_eq!((kept.len(), noise), (2, 1));
+/// assert_eq!(kept.classification, Some(vec![1, 2]));
+/// ```
+pub fn remove_classified_noise(cloud: &PointCloud) -> Option<(PointCloud, usize)> {
+    let classes = cloud.classification.as_ref()?;
+    let noise = classes
+        .iter()
+        .filter(|c| super::CLASSES_NOISE.contains(c))
+        .count();
+    (noise > 0).then(|| {
+        let kept = cloud.retain_indices(|i| !super::CLASSES_NOISE.contains(&classes[i]));
+        (kept, noise)
+    })
+}
+
 /// Returns dropped by [`remove_stray_returns`], by where they lay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Strays {

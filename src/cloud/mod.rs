@@ -50,6 +50,10 @@ pub struct PointCloud {
 /// ASPRS LAS classification code for ground points.
 pub const CLASS_GROUND: u8 = 2;
 
+/// ASPRS LAS classification codes of noise: 7, "low point (noise)", and 18,
+/// "high noise" (LAS 1.4 point formats 6–10 only).
+pub const CLASSES_NOISE: [u8; 2] = [7, 18];
+
 impl PointCloud {
     /// An empty cloud with the given offset.
     pub fn new(offset: DVec3) -> Self {

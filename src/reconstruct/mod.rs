@@ -3,8 +3,9 @@
 //! [`reconstruct`] turns the point cloud of one tree into a [`Skeleton`] with
 //! radii and [`metrics::TreeMetrics`]:
 //!
-//! 1. drop a handful of stray returns far from the rest (birds, noise; see
-//!    [`STRAY_GAP_M`]) and validate the input (enough points, no wider than
+//! 1. drop the points classified as noise (LAS classes 7 and 18) and a
+//!    handful of stray returns far from the rest (birds, noise; see
+//!    [`STRAY_GAP_M`]), and validate the input (enough points, no wider than
 //!    [`MAX_TREE_WIDTH_M`], not on one line or plane);
 //! 2. choose a pipeline ([`Mode::Auto`] looks at point density and trunk
 //!    coverage, see [`survey`]);
@@ -189,6 +190,9 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     let interrupt = &opts.interrupt;
     check_points(cloud)?;
     interrupt.check("stray-return removal")?;
+    let classified = clean::remove_classified_noise(cloud);
+    let cloud = classified.as_ref().map_or(cloud, |(kept, _)| kept);
+    check_points(cloud)?;
     let cleaned = clean::remove_stray_returns(cloud, STRAY_GAP_M, MAX_STRAY_SHARE);
     let cloud = cleaned.as_ref().map_or(cloud, |(kept, _)| kept);
     validate(cloud)?;
@@ -202,9 +206,10 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
         Mode::Dense | Mode::Airborne => (opts.mode, REQUESTED.to_string(), None),
     };
     let (mut skeleton, tree_cloud, pipeline_notes) = run_pipeline(cloud, mode, opts)?;
-    let mut notes: Vec<String> = cleaned
-        .map(|(_, strays)| strays_note(strays))
+    let mut notes: Vec<String> = classified
+        .map(|(_, noise)| noise_note(noise))
         .into_iter()
+        .chain(cleaned.map(|(_, strays)| strays_note(strays)))
         .chain(survey_note)
         .collect();
     notes.extend(pipeline_notes);
@@ -287,6 +292,12 @@ fn measure_crown(
         crown.height_m += apex.gap_m;
     }
     crown
+}
+
+/// What [`reconstruct`] says about the points it dropped by their class.
+fn noise_note(noise: usize) -> String {
+    let points = if noise == 1 { "point" } else { "points" };
+    format!("{noise} {points} classified as noise ignored (LAS classes 7 and 18)")
 }
 
 /// What [`reconstruct`] says about the strays it dropped.
