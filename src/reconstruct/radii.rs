@@ -552,7 +552,7 @@ fn slice_fit(
     let Some((circle, inliers)) = robust_circle(&flat, params.search_radius_m) else {
         return Err(format!("no circle fits the {} trunk points", flat.len()));
     };
-    let sectors = section_sectors_seen(&inliers, circle.centre);
+    let sectors = trunk_sectors_seen(&inliers, circle.centre);
     let rms = circle_rms(&inliers, circle);
     if inliers.len() < params.min_trunk_points || sectors < params.min_sectors {
         return Err(format!(
@@ -902,14 +902,28 @@ fn section_sectors_seen(points: &[Vec2], centre: Vec2) -> u32 {
 /// Number of the `sectors` equal sectors around `centre` that hold at least
 /// one point: how far round a stem (or a crown) the scan saw.
 pub(crate) fn sectors_seen(points: &[Vec2], centre: Vec2, sectors: usize) -> u32 {
-    let mut seen = vec![false; sectors];
+    sectors_holding(points, centre, sectors, 1)
+}
+
+/// Number of the `sectors` equal sectors around `centre` that hold at least
+/// `min_points` of `points`.
+fn sectors_holding(points: &[Vec2], centre: Vec2, sectors: usize, min_points: u32) -> u32 {
+    let mut held = vec![0u32; sectors];
     for p in points {
         let d = *p - centre;
         let a = d.y.atan2(d.x) + std::f32::consts::PI;
         let s = (a / std::f32::consts::TAU * sectors as f32) as usize;
-        seen[s.min(sectors - 1)] = true;
+        held[s.min(sectors - 1)] += 1;
     }
-    seen.iter().filter(|&&s| s).count() as u32
+    held.iter().filter(|&&n| n >= min_points).count() as u32
+}
+
+/// Sectors of 30° around a trunk circle's `centre` that hold at least two
+/// of its inliers: one stray return is no view of the bark. (With 300
+/// stray points added to tree13's box, a shallow arc of its trunk and one
+/// stray 0.9 m off made a 1.07 m circle "seen" over 4 sectors.)
+fn trunk_sectors_seen(inliers: &[Vec2], centre: Vec2) -> u32 {
+    sectors_holding(inliers, centre, SECTION_SECTORS, 2)
 }
 
 /// Number of tips in each node's subtree (a tip counts itself).
@@ -1158,6 +1172,38 @@ mod tests {
         assert_eq!(fit.method, DbhMethod::Fitted, "{}", fit.reason);
         assert!((fit.radius_m - 0.3).abs() < 0.01, "{fit:?}");
         assert!(fit.reason.contains("near the trunk axis"), "{}", fit.reason);
+    }
+
+    /// A trunk seen over 80° of its girth (3 sectors), and one stray return
+    /// that happens to lie on the same circle across it: one return is no
+    /// view of the far side, so the fit is not trusted (it needs 4 sectors).
+    #[test]
+    fn one_stray_return_does_not_make_a_sector_seen() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.5);
+        tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 3.0), 0.5);
+        let on_bark = |deg: f32, z: f32| {
+            let (s, c) = deg.to_radians().sin_cos();
+            Vec3::new(0.5 * c, 0.5 * s, z)
+        };
+        let mut points: Vec<Vec3> = (0..60)
+            .map(|i| on_bark(5.0 + 80.0 * i as f32 / 60.0, 1.0 + 0.01 * i as f32))
+            .collect();
+        let crown = Crown {
+            height_m: 3.0,
+            base_height_m: 2.0,
+            diameter_m: 2.0,
+            area_m2: 3.0,
+        };
+        let arc = fit_trunk(&tree, &points, &crown, &Params::default());
+        assert_eq!(arc.method, DbhMethod::Estimated, "{}", arc.reason);
+        points.push(on_bark(200.0, 1.3));
+        let fit = fit_trunk(&tree, &points, &crown, &Params::default());
+        assert_eq!(fit.method, DbhMethod::Estimated, "{}", fit.reason);
+        assert!(
+            fit.reason.contains("over 3 of 12 sectors"),
+            "{}",
+            fit.reason
+        );
     }
 
     /// Trust in measured radii without a fitted trunk (no cap).
