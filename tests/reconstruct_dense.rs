@@ -822,3 +822,37 @@ fn a_drooping_crown_is_not_taken_for_the_ground() {
         m.dbh_m
     );
 }
+
+/// The synthetic oak 1 on a plot whose scanned ground, 5 m in radius,
+/// rises 20° along +x: a limb tip 10 m out, beyond the scanned ground, lies
+/// on the ground plane's extrapolation. Its cell, apart from the ground's
+/// one surface, is no ground; taken for it, the tip became the trunk base
+/// (10.1 m off) and the DBH was estimated.
+#[test]
+fn a_limb_tip_beyond_the_plots_ground_is_no_trunk_base() {
+    use silva::eval::run::trunk_radius_at;
+    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Oak),
+        1,
+        silva::Anchor::default(),
+    );
+    let opts = TlsOptions {
+        ground: Some(TlsGround {
+            radius_m: 5.0,
+            slope: glam::Vec2::new(20f32.to_radians().tan(), 0.0),
+        }),
+        ..TlsOptions::default()
+    };
+    let tree = reconstruct(&simulate_tls(&truth, &opts, 1), &Options::default()).unwrap();
+    let base = tree.skeleton.anchor().origin;
+    assert!(base.truncate().length() < 0.5, "trunk base at {base}");
+    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
+    let m = &tree.metrics;
+    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
+    assert!(
+        (m.dbh_m - true_dbh).abs() < 0.03,
+        "DBH {} against {true_dbh}",
+        m.dbh_m
+    );
+}

@@ -332,6 +332,7 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         .filter(|(_, keep)| **keep)
         .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
         .collect();
+    let residual_m = largest_patch(residual_m);
     let bare_cells = count_bare_cells(points, origin, plane, &residual_m);
     let surface_m = mean_ground(points, origin, plane, &residual_m);
     let mut terrain = Terrain {
@@ -348,6 +349,43 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         .filter(|p| p.z - terrain.height_at(p.x, p.y) < -BELOW_GROUND_NOISE_M)
         .count();
     Some(terrain)
+}
+
+/// The largest 8-connected patch of `cells`: the ground is one surface. An
+/// isolated cell whose lowest point happens to lie on the plane's
+/// extrapolation is a limb, not ground (a synthetic oak's limb tip 10 m out
+/// over a 20° slope, beyond the plot's scanned ground, became the trunk
+/// base).
+fn largest_patch<V>(mut cells: HashMap<(i32, i32), V>) -> HashMap<(i32, i32), V> {
+    // Starts in cell order, so that a tie keeps the same patch every run.
+    let mut starts: Vec<(i32, i32)> = cells.keys().copied().collect();
+    starts.sort_unstable();
+    let mut unseen: std::collections::HashSet<(i32, i32)> = starts.iter().copied().collect();
+    let mut largest: Vec<(i32, i32)> = Vec::new();
+    for start in starts {
+        if !unseen.remove(&start) {
+            continue;
+        }
+        let mut patch = vec![start];
+        let mut next = 0;
+        while let Some(&(i, j)) = patch.get(next) {
+            next += 1;
+            for di in -1..=1 {
+                for dj in -1..=1 {
+                    let cell = (i.saturating_add(di), j.saturating_add(dj));
+                    if unseen.remove(&cell) {
+                        patch.push(cell);
+                    }
+                }
+            }
+        }
+        if patch.len() > largest.len() {
+            largest = patch;
+        }
+    }
+    let keep: std::collections::HashSet<(i32, i32)> = largest.into_iter().collect();
+    cells.retain(|cell, _| keep.contains(cell));
+    cells
 }
 
 /// What [`fit_terrain`] keeps of the points in one grid cell.
@@ -532,6 +570,20 @@ fn fit_plane(candidates: &[((i32, i32), DVec3)], use_it: &[bool]) -> Option<[f64
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// A plot's scanned ground, 10 m across, and one limb tip 5 m beyond
+    /// its edge that lies on the ground plane's extrapolation: the tip's
+    /// cell is no ground, as it is not part of the ground's one surface.
+    #[test]
+    fn a_cell_apart_from_the_ground_is_no_ground() {
+        let mut points: Vec<Vec3> = (0..50)
+            .flat_map(|i| (0..50).map(move |j| Vec3::new(i as f32 * 0.2, j as f32 * 0.2, 0.0)))
+            .collect();
+        points.extend((0..5).map(|k| Vec3::new(15.0 + 0.1 * k as f32, 5.0, 0.05)));
+        let terrain = fit_terrain(&points).unwrap();
+        assert!(terrain.surface_near(5.0, 5.0).is_some());
+        assert_eq!(terrain.surface_near(15.2, 5.0), None);
+    }
 
     /// 20 returns/m² of open ground on a 0.3 slope, 5 cm Gaussian range
     /// noise: the cells' lowest returns lie about 8 cm below the
