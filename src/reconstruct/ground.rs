@@ -106,8 +106,9 @@ pub struct Terrain {
     /// Terrain cells that are open ground: enough points in a ground layer
     /// with clear air above it (see [`count_bare_cells`]).
     bare_cells: usize,
-    /// Points more than [`BELOW_GROUND_NOISE_M`] below the surface, and
-    /// all the points the surface was fitted to.
+    /// Points more than [`BELOW_GROUND_NOISE_M`] below the surface (counted
+    /// only when the surface covers open ground), and all the points the
+    /// surface was fitted to.
     deep_below: (usize, usize),
     /// Per terrain cell: the mean height of its ground returns (those within
     /// the ground tolerance of its lowest) minus the plane (see
@@ -188,12 +189,16 @@ impl Terrain {
     /// of a crown always has foliage above its lowest points), and hardly
     /// any points lie far below it ([`MAX_BELOW_GROUND_SHARE`]).
     pub(crate) fn is_ground(&self) -> bool {
-        let (_, terrain) = self.cells;
         let (below, points) = self.deep_below;
+        self.covers_open_ground() && below as f64 <= MAX_BELOW_GROUND_SHARE * points as f64
+    }
+
+    /// The first two conditions of [`Terrain::is_ground`].
+    fn covers_open_ground(&self) -> bool {
+        let (_, terrain) = self.cells;
         f64::from(self.cell_share()) >= MIN_GROUND_CELL_SHARE
             && self.bare_cells >= 3
             && self.bare_cells * 4 >= terrain
-            && below as f64 <= MAX_BELOW_GROUND_SHARE * points as f64
     }
 }
 
@@ -344,10 +349,13 @@ pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
         residual_m,
         origin,
     };
-    terrain.deep_below.0 = points
-        .iter()
-        .filter(|p| p.z - terrain.height_at(p.x, p.y) < -BELOW_GROUND_NOISE_M)
-        .count();
+    // Counted only where it can decide (a pass over every point).
+    if terrain.covers_open_ground() {
+        terrain.deep_below.0 = points
+            .iter()
+            .filter(|p| p.z - terrain.height_at(p.x, p.y) < -BELOW_GROUND_NOISE_M)
+            .count();
+    }
     Some(terrain)
 }
 

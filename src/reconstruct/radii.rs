@@ -489,19 +489,17 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
             params.breast_height_m
         ));
     };
-    let (lo, hi) = (base_z + params.slice_m.0, base_z + params.slice_m.1);
+    let slice = TrunkSlice {
+        skeleton,
+        z_range: (base_z + params.slice_m.0, base_z + params.slice_m.1),
+        search_radius_m: params.search_radius_m,
+    };
+    // The claims do not depend on the direction: computed once.
+    let claims = [Claim::NearestIsTrunk, Claim::NearTrunk].map(|c| (c, slice.claimed(points, c)));
     let fits: Vec<Result<TrunkFit, String>> = axis
         .directions()
         .into_iter()
-        .map(|dir| {
-            let slice = TrunkSlice {
-                skeleton,
-                z_range: (lo, hi),
-                axis: (axis.point, dir),
-                search_radius_m: params.search_radius_m,
-            };
-            claimed_fit(&slice, points, params)
-        })
+        .map(|dir| claimed_fit(&claims, (axis.point, dir), params))
         .collect();
     let sharpness = |f: &TrunkFit| f.points as f32 / f.rms_m.max(1e-4);
     let sharpest = fits
@@ -513,15 +511,23 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
     sharpest.unwrap_or_else(|| estimate(fits.into_iter().find_map(Result::err).unwrap_or_default()))
 }
 
-/// The circle fit of a slice's trunk points, or why it fails.
+/// The circle fit of the slice's trunk points projected along `axis` (a
+/// point at breast height and a direction), or why it fails.
 ///
 /// A sparse, occluded scan of a thick trunk leaves spurious branches on its
 /// bark, and a main chain that zigzags out to the bark, whose internodes
 /// claim the trunk's points; then the points near the trunk axis are
 /// fitted instead, and the robust fit rejects those of real branches.
-fn claimed_fit(slice: &TrunkSlice, points: &[Vec3], params: &Params) -> Result<TrunkFit, String> {
-    slice_fit(slice, points, Claim::NearestIsTrunk, params).or_else(|first| {
-        slice_fit(slice, points, Claim::NearTrunk, params).map_err(|second| {
+fn claimed_fit(
+    claims: &[(Claim, Vec<Vec3>); 2],
+    axis: (Vec3, Vec3),
+    params: &Params,
+) -> Result<TrunkFit, String> {
+    let fit = |(claim, points): &(Claim, Vec<Vec3>)| {
+        slice_fit(&projected(points, axis), axis.0.z, *claim, params)
+    };
+    fit(&claims[0]).or_else(|first| {
+        fit(&claims[1]).map_err(|second| {
             if second == first {
                 first
             } else {
@@ -531,14 +537,18 @@ fn claimed_fit(slice: &TrunkSlice, points: &[Vec3], params: &Params) -> Result<T
     })
 }
 
-/// The circle fit of one claim of the breast-height slice, or why it fails.
-fn slice_fit(
-    slice: &TrunkSlice,
-    points: &[Vec3],
-    claim: Claim,
-    params: &Params,
-) -> Result<TrunkFit, String> {
-    let flat = slice.points(points, claim);
+/// `points` projected along the line `axis` (a point and a direction) onto
+/// the horizontal plane through its point.
+fn projected(points: &[Vec3], (point, dir): (Vec3, Vec3)) -> Vec<Vec2> {
+    points
+        .iter()
+        .map(|&p| (p - dir * ((p.z - point.z) / dir.z)).truncate())
+        .collect()
+}
+
+/// The circle fit of one claim of the breast-height slice (`flat`, its
+/// points projected onto the plane at height `z`), or why it fails.
+fn slice_fit(flat: &[Vec2], z: f32, claim: Claim, params: &Params) -> Result<TrunkFit, String> {
     if flat.len() < params.min_trunk_points {
         return Err(format!(
             "only {} trunk {} at {:.1}–{:.1} m (at least {} needed)",
@@ -549,7 +559,7 @@ fn slice_fit(
             params.min_trunk_points
         ));
     }
-    let Some((circle, inliers)) = robust_circle(&flat, params.search_radius_m) else {
+    let Some((circle, inliers)) = robust_circle(flat, params.search_radius_m) else {
         return Err(format!("no circle fits the {} trunk points", flat.len()));
     };
     let sectors = trunk_sectors_seen(&inliers, circle.centre);
@@ -577,7 +587,7 @@ fn slice_fit(
     Ok(TrunkFit {
         radius_m: circle.radius,
         method: DbhMethod::Fitted,
-        centre: Some(circle.centre.extend(slice.axis.0.z)),
+        centre: Some(circle.centre.extend(z)),
         points: inliers.len(),
         sectors,
         rms_m: rms,
@@ -607,15 +617,12 @@ struct TrunkSlice<'a> {
     skeleton: &'a Skeleton,
     /// Heights of the slice, absolute.
     z_range: (f32, f32),
-    /// A point on the trunk axis at breast height and its direction.
-    axis: (Vec3, Vec3),
     search_radius_m: f32,
 }
 
 impl TrunkSlice<'_> {
-    /// The claimed trunk points of the slice, projected along the trunk axis
-    /// onto the breast-height plane.
-    fn points(&self, points: &[Vec3], claim: Claim) -> Vec<Vec2> {
+    /// The claimed trunk points of the slice.
+    fn claimed(&self, points: &[Vec3], claim: Claim) -> Vec<Vec3> {
         let (lo, hi) = self.z_range;
         let orders = self.skeleton.branch_orders();
         let nearby: Vec<(Vec3, Vec3, bool)> = self
@@ -635,12 +642,10 @@ impl TrunkSlice<'_> {
                 .min_by(|x, y| x.0.total_cmp(&y.0));
             nearest.is_some_and(|(d, trunk)| trunk && d <= self.search_radius_m)
         };
-        let (axis_point, axis_dir) = self.axis;
         points
             .iter()
             .copied()
             .filter(|p| p.z >= lo && p.z <= hi && on_trunk(*p))
-            .map(|p| (p - axis_dir * ((p.z - axis_point.z) / axis_dir.z)).truncate())
             .collect()
     }
 }
