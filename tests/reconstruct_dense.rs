@@ -434,6 +434,44 @@ fn recall_precision(truth: &Skeleton, cloud: &PointCloud, opts: &Options) -> (f3
 /// The synthetic tree of `silva eval --synthetic` (species and seed as
 /// there) and its default terrestrial scan: 150 points/m² of bark, seen
 /// from the scanner positions, with occlusion.
+/// Asserts that `tree`'s DBH was fitted and lies within `tolerance_m` of
+/// the truth's at 1.3 m.
+fn assert_fitted_dbh(
+    tree: &silva::reconstruct::Reconstruction,
+    truth: &Skeleton,
+    tolerance_m: f32,
+) {
+    let true_dbh = 2.0 * silva::eval::run::trunk_radius_at(truth, 1.3);
+    let m = &tree.metrics;
+    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
+    assert!(
+        (m.dbh_m - true_dbh).abs() < tolerance_m,
+        "DBH {} against {true_dbh}",
+        m.dbh_m
+    );
+}
+
+/// A synthetic tree (at the origin) and its default scan as a plot: with
+/// ground scanned `radius_m` around the trunk, rising `slope_deg` along +x.
+fn plot_scan(
+    species: silva::synth::Species,
+    seed: u64,
+    radius_m: f32,
+    slope_deg: f32,
+) -> (Skeleton, PointCloud) {
+    use silva::synth::{TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
+    let opts = TlsOptions {
+        ground: Some(TlsGround {
+            radius_m,
+            slope: glam::Vec2::new(slope_deg.to_radians().tan(), 0.0),
+        }),
+        ..TlsOptions::default()
+    };
+    let scan = simulate_tls(&truth, &opts, seed);
+    (truth, scan)
+}
+
 fn default_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointCloud) {
     use silva::synth::{TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
@@ -494,19 +532,11 @@ fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
 /// branches'), not estimated allometrically.
 #[test]
 fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
-    use silva::eval::run::trunk_radius_at;
     let (truth, cloud) = default_scan(silva::synth::Species::Poplar, 3);
     let mut zigzag = dense();
     zigzag.dense.detour_thin_share = 0.0;
     let tree = reconstruct(&cloud, &zigzag).unwrap();
-    let m = &tree.metrics;
-    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
-    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
-    assert!(
-        (m.dbh_m - true_dbh).abs() < 0.05,
-        "DBH {} against {true_dbh}",
-        m.dbh_m
-    );
+    assert_fitted_dbh(&tree, &truth, 0.05);
 }
 
 /// A clean, dense terrestrial scan of a synthetic Lombardy poplar (the
@@ -711,20 +741,7 @@ fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
 /// for having "only 0 points above the ground".
 #[test]
 fn a_plot_scan_with_its_ground_on_top_is_an_error() {
-    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
-    let truth = generate(
-        &TreeParams::preset(Species::Poplar),
-        3,
-        silva::Anchor::default(),
-    );
-    let opts = TlsOptions {
-        ground: Some(TlsGround {
-            radius_m: 8.0,
-            slope: glam::Vec2::ZERO,
-        }),
-        ..TlsOptions::default()
-    };
-    let scan = simulate_tls(&truth, &opts, 3);
+    let (_, scan) = plot_scan(silva::synth::Species::Poplar, 3, 8.0, 0.0);
     for degrees in [135.0f32, 180.0] {
         let cloud = turned_about_x(&scan, degrees);
         for options in [dense(), Options::default()] {
@@ -745,17 +762,9 @@ fn a_plot_scan_with_its_ground_on_top_is_an_error() {
 /// smeared into a disc, and the DBH came out 0.71 m against 0.42 m.
 #[test]
 fn a_zigzagging_trunk_chain_does_not_smear_the_dbh_slice() {
-    use silva::eval::run::trunk_radius_at;
     let (truth, cloud) = default_scan(silva::synth::Species::Pine, 20);
     let tree = reconstruct(&cloud, &dense()).unwrap();
-    let m = &tree.metrics;
-    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
-    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
-    assert!(
-        (m.dbh_m - true_dbh).abs() < 0.02,
-        "DBH {} against {true_dbh}",
-        m.dbh_m
-    );
+    assert_fitted_dbh(&tree, &truth, 0.02);
 }
 
 /// Returns the producer classified as noise (LAS classes 7 and 18) around
@@ -806,7 +815,6 @@ fn returns_classified_as_noise_are_ignored() {
 /// stem went as below-ground noise and the DBH came out 1.6 m.
 #[test]
 fn a_drooping_crown_is_not_taken_for_the_ground() {
-    use silva::eval::run::trunk_radius_at;
     let (truth, cloud) = default_scan(silva::synth::Species::Birch, 50);
     let tree = reconstruct(&cloud, &dense()).unwrap();
     assert!(
@@ -814,13 +822,7 @@ fn a_drooping_crown_is_not_taken_for_the_ground() {
         "{:?}",
         tree.notes
     );
-    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
-    let m = &tree.metrics;
-    assert!(
-        (m.dbh_m - true_dbh).abs() < 0.02,
-        "DBH {} against {true_dbh}",
-        m.dbh_m
-    );
+    assert_fitted_dbh(&tree, &truth, 0.02);
 }
 
 /// The synthetic oak 1 on a plot whose scanned ground, 5 m in radius,
@@ -830,29 +832,9 @@ fn a_drooping_crown_is_not_taken_for_the_ground() {
 /// (10.1 m off) and the DBH was estimated.
 #[test]
 fn a_limb_tip_beyond_the_plots_ground_is_no_trunk_base() {
-    use silva::eval::run::trunk_radius_at;
-    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
-    let truth = generate(
-        &TreeParams::preset(Species::Oak),
-        1,
-        silva::Anchor::default(),
-    );
-    let opts = TlsOptions {
-        ground: Some(TlsGround {
-            radius_m: 5.0,
-            slope: glam::Vec2::new(20f32.to_radians().tan(), 0.0),
-        }),
-        ..TlsOptions::default()
-    };
-    let tree = reconstruct(&simulate_tls(&truth, &opts, 1), &Options::default()).unwrap();
+    let (truth, scan) = plot_scan(silva::synth::Species::Oak, 1, 5.0, 20.0);
+    let tree = reconstruct(&scan, &Options::default()).unwrap();
     let base = tree.skeleton.anchor().origin;
     assert!(base.truncate().length() < 0.5, "trunk base at {base}");
-    let true_dbh = 2.0 * trunk_radius_at(&truth, 1.3);
-    let m = &tree.metrics;
-    assert_eq!(m.dbh_method, DbhMethod::Fitted, "{:?}", tree.notes);
-    assert!(
-        (m.dbh_m - true_dbh).abs() < 0.03,
-        "DBH {} against {true_dbh}",
-        m.dbh_m
-    );
+    assert_fitted_dbh(&tree, &truth, 0.03);
 }

@@ -1167,16 +1167,21 @@ mod tests {
                 Vec3::new(0.3 * c, 0.3 * s, 1.0 + 0.6 * (i as f32 + 0.5) / 240.0)
             })
             .collect();
-        let crown = Crown {
-            height_m: 3.0,
-            base_height_m: 2.0,
-            diameter_m: 2.0,
-            area_m2: 3.0,
-        };
+        let crown = small_crown();
         let fit = fit_trunk(&tree, &points, &crown, &Params::default());
         assert_eq!(fit.method, DbhMethod::Fitted, "{}", fit.reason);
         assert!((fit.radius_m - 0.3).abs() < 0.01, "{fit:?}");
         assert!(fit.reason.contains("near the trunk axis"), "{}", fit.reason);
+    }
+
+    /// The crown of the small test trees of the trunk fit.
+    fn small_crown() -> Crown {
+        Crown {
+            height_m: 3.0,
+            base_height_m: 2.0,
+            diameter_m: 2.0,
+            area_m2: 3.0,
+        }
     }
 
     /// A trunk seen over 80° of its girth (3 sectors), and one stray return
@@ -1193,12 +1198,7 @@ mod tests {
         let mut points: Vec<Vec3> = (0..60)
             .map(|i| on_bark(5.0 + 80.0 * i as f32 / 60.0, 1.0 + 0.01 * i as f32))
             .collect();
-        let crown = Crown {
-            height_m: 3.0,
-            base_height_m: 2.0,
-            diameter_m: 2.0,
-            area_m2: 3.0,
-        };
+        let crown = small_crown();
         let arc = fit_trunk(&tree, &points, &crown, &Params::default());
         assert_eq!(arc.method, DbhMethod::Estimated, "{}", arc.reason);
         points.push(on_bark(200.0, 1.3));
