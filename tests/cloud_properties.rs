@@ -7,7 +7,8 @@ use std::io::Cursor;
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use silva::cloud::clean::{
-    occupied_voxels, remove_near_duplicates, remove_statistical_outliers, voxel_downsample,
+    IsolatedGroups, occupied_voxels, remove_isolated_groups, remove_near_duplicates,
+    remove_statistical_outliers, voxel_downsample,
 };
 use silva::cloud::{CloudError, Format, PointCloud, ReadOptions, read_as, read_bytes};
 
@@ -131,6 +132,37 @@ proptest! {
             prop_assert!(tags.windows(2).all(|w| w[0] < w[1]));
             for (p, &tag) in out.points.iter().zip(tags) {
                 prop_assert_eq!(*p, cloud.points[usize::from(tag)]);
+            }
+        }
+    }
+
+    /// Whatever the cloud, a dropped return has no kept return within the
+    /// gap, the survivors are original points in input order, and no more
+    /// than the share (or one group) goes.
+    #[test]
+    fn isolated_groups_lie_apart_from_what_is_kept(
+        raw in prop::collection::vec((-40i32..40, -40i32..40, -40i32..40), 1..200),
+        gap_m in 0.5f32..6.0,
+        max_group in 1usize..10,
+        share in 0.0f32..0.5,
+    ) {
+        let pts: Vec<Vec3> = raw.iter().map(|&(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) * 0.25).collect();
+        let mut cloud = PointCloud::from_points(DVec3::new(1000.0, 2000.0, 0.0), pts);
+        cloud.intensity = Some((0..cloud.len()).map(|i| i as u16).collect());
+        let rule = IsolatedGroups { min_gap_m: gap_m, gap_spacings: 0.0, max_group, max_share: share };
+        let Some((kept, strays)) = remove_isolated_groups(&cloud, &rule) else {
+            return Ok(());
+        };
+        let dropped = cloud.len() - kept.len();
+        prop_assert_eq!(strays.total(), dropped);
+        prop_assert!(dropped >= 1 && dropped <= ((cloud.len() as f32 * share) as usize).max(max_group));
+        let tags = kept.intensity.as_ref().unwrap();
+        prop_assert!(tags.windows(2).all(|w| w[0] < w[1]));
+        let is_kept = |i: usize| tags.contains(&(i as u16));
+        let dropped_points = cloud.points.iter().enumerate().filter(|&(i, _)| !is_kept(i));
+        for (_, p) in dropped_points {
+            for q in &kept.points {
+                prop_assert!(p.distance(*q) > gap_m, "dropped {} within {} of kept {}", p, gap_m, q);
             }
         }
     }

@@ -13,7 +13,9 @@
 //! travel with them, and they keep the input order of the survivors. Neighbour
 //! queries go through [`PointIndex`], the crate's one kd-tree.
 
-use glam::Vec3;
+use std::collections::HashMap;
+
+use glam::{I64Vec3, Vec3};
 
 use super::PointCloud;
 use crate::spatial::PointIndex;
@@ -143,7 +145,8 @@ pub fn remove_classified_noise(cloud: &PointCloud) -> Option<(PointCloud, usize)
     })
 }
 
-/// Returns dropped by [`remove_stray_returns`], by where they lay.
+/// Returns dropped by [`remove_stray_returns`] or [`remove_isolated_groups`],
+/// by where they lay.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Strays {
     /// Above the kept points, across a gap in height.
@@ -155,6 +158,15 @@ pub struct Strays {
 }
 
 impl Strays {
+    /// The returns of two passes together.
+    pub fn merged(self, other: Strays) -> Strays {
+        Strays {
+            above: self.above + other.above,
+            below: self.below + other.below,
+            beside: self.beside + other.beside,
+        }
+    }
+
     /// All dropped returns.
     pub fn total(&self) -> usize {
         self.above + self.below + self.beside
@@ -247,6 +259,204 @@ fn main_slab(
     let slabs = sorted.chunk_by(|a, b| b - a <= gap_m);
     let main = slabs.max_by_key(|slab| slab.len())?;
     (main.len() < sorted.len()).then(|| (main[0], main[main.len() - 1]))
+}
+
+/// The test of [`remove_isolated_groups`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct IsolatedGroups {
+    /// The shortest gap, in metres, that isolates a group.
+    pub min_gap_m: f32,
+    /// The gap in median point spacings, when that is longer.
+    pub gap_spacings: f32,
+    /// The most points a group holds.
+    pub max_group: usize,
+    /// The largest share of the points that may go.
+    pub max_share: f32,
+}
+
+/// Drops small groups of returns that no other return comes near: a bird
+/// or two above a crown, multipath returns under the ground. These lie a
+/// few metres to tens of metres off, nearer than [`remove_stray_returns`]'
+/// gap, yet one of them sets the tree's height or its lowest point (three
+/// returns 20–40 m above a 10.9 m AHN tree made it 52.7 m tall; two returns
+/// 5–10 m under a terrestrial scan made it look upside down).
+///
+/// A *group* is a set of at most [`IsolatedGroups::max_group`] points with
+/// no other point within the gap of any of them (single linkage, exactly):
+/// [`IsolatedGroups::min_gap_m`], or [`IsolatedGroups::gap_spacings`] times
+/// the cloud's median point spacing if that is longer, since the sparser
+/// the scan, the farther apart its hits on one tree lie. The
+/// groups that lie wholly above or wholly below all the other points go:
+/// those set a tree's height and its base. A group within the others'
+/// height range stays: in a sparse airborne clip it is a piece of the crown
+/// whose links to the rest were not hit (at 2 points/m², 19 of 40
+/// synthetic clips hold such pieces more than 3 m from the rest), and a
+/// stray beside a tree moves no more than its crown's width. Nothing goes
+/// when the groups to drop hold more than [`IsolatedGroups::max_share`] of
+/// the points (and more than one group's worth) in all: that many are a
+/// second object or a noisy scan, not a few strays; nor when nothing else
+/// would stay.
+///
+/// Cost: one pass over cubes whose diagonal is the gap. A cube holding more
+/// than `max_group` points cannot hold a group (its points are all within
+/// the gap of each other): when every cube is fuller, that is all. Else a
+/// kd-tree over the points gives their spacing, and the points of sparse
+/// cubes are grown into groups; each growth stops after `max_group + 1`
+/// points.
+///
+/// `None` when nothing was dropped. The points must be finite.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use silva::cloud::PointCloud;
+/// use silva::cloud::clean::{IsolatedGroups, remove_isolated_groups};
+///
+/// let mut pts: Vec<Vec3> = (0..200).map(|i| Vec3::new(0.0, 0.01 * i as f32, 0.05 * i as f32)).collect();
+/// pts.push(Vec3::new(1.0, 0.0, 25.0)); // a bird 15 m above the top
+/// pts.push(Vec3::new(0.0, 0.5, -6.0)); // multipath 6 m under the base
+/// let cloud = PointCloud::from_points(DVec3::ZERO, pts);
+/// let rule = IsolatedGroups { min_gap_m: 3.0, gap_spacings: 20.0, max_group: 8, max_share: 0.01 };
+/// let (clean, strays) = remove_isolated_groups(&cloud, &rule).unwrap();
+/// assert_eq!((clean.len(), strays.above, strays.below), (200, 1, 1));
+/// ```
+pub fn remove_isolated_groups(
+    cloud: &PointCloud,
+    rule: &IsolatedGroups,
+) -> Option<(PointCloud, Strays)> {
+    let groups = SparseCubes::new(&cloud.points, rule)?.isolated_groups();
+    let mut in_group = vec![false; cloud.len()];
+    groups.iter().flatten().for_each(|&i| in_group[i] = true);
+    let others = cloud.points.iter().zip(&in_group).filter(|(_, g)| !**g);
+    let (low, high) = z_bounds(others.map(|(p, _)| p));
+    let mut strays = Strays::default();
+    let mut stray = vec![false; cloud.len()];
+    for group in &groups {
+        let (lo, hi) = z_bounds(group.iter().map(|&i| &cloud.points[i]));
+        match () {
+            _ if lo > high => strays.above += group.len(),
+            _ if hi < low => strays.below += group.len(),
+            _ => continue,
+        }
+        group.iter().for_each(|&i| stray[i] = true);
+    }
+    let dropped = strays.total();
+    let limit = ((cloud.len() as f32 * rule.max_share) as usize).max(rule.max_group);
+    if dropped == 0 || dropped > limit || dropped == cloud.len() {
+        return None;
+    }
+    Some((cloud.retain_indices(|i| !stray[i]), strays))
+}
+
+/// Lowest and highest z of the points (infinities when there are none).
+fn z_bounds<'a>(points: impl Iterator<Item = &'a Vec3>) -> (f32, f32) {
+    points.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p.z), hi.max(p.z))
+    })
+}
+
+/// The search of [`remove_isolated_groups`]: a kd-tree over the points,
+/// the gap, and which points lie in cubes sparse enough to hold a group.
+struct SparseCubes<'a> {
+    points: &'a [Vec3],
+    gap_m: f32,
+    max_group: usize,
+    /// Whether each point's cube holds at most `max_group` points.
+    in_sparse_cube: Vec<bool>,
+    index: PointIndex,
+}
+
+impl<'a> SparseCubes<'a> {
+    /// `None` when no group can lie above or below the rest. The kd-tree is
+    /// built only when the highest or the lowest point sits in a sparse cube.
+    fn new(points: &'a [Vec3], rule: &IsolatedGroups) -> Option<Self> {
+        // A group wholly above the rest would put the highest point in it,
+        // and one below the lowest: when both points sit in full cubes,
+        // there is none (a longer gap only fills the cubes more).
+        let sparse = sparse_cubes(points, rule.min_gap_m, rule.max_group)?;
+        let by_z = |a: &&Vec3, b: &&Vec3| a.z.total_cmp(&b.z);
+        let extreme = |p: Option<(usize, &Vec3)>| p.is_some_and(|(i, _)| sparse[i]);
+        let top = points.iter().enumerate().max_by(|a, b| by_z(&a.1, &b.1));
+        let bottom = points.iter().enumerate().min_by(|a, b| by_z(&a.1, &b.1));
+        if !extreme(top) && !extreme(bottom) {
+            return None;
+        }
+        let index = PointIndex::new(points);
+        let spacing = index.median_spacing(points).unwrap_or(0.0);
+        let gap_m = rule.min_gap_m.max(rule.gap_spacings * spacing);
+        Some(Self {
+            points,
+            gap_m,
+            max_group: rule.max_group,
+            in_sparse_cube: sparse_cubes(points, gap_m, rule.max_group)?,
+            index,
+        })
+    }
+
+    /// Every group, as point indices.
+    fn isolated_groups(&self) -> Vec<Vec<usize>> {
+        // Points known to belong to a part of more than `max_group` points.
+        let mut large = vec![false; self.points.len()];
+        let mut grouped = vec![false; self.points.len()];
+        let mut groups = Vec::new();
+        for seed in 0..self.points.len() {
+            if !self.in_sparse_cube[seed] || large[seed] || grouped[seed] {
+                continue;
+            }
+            if let Some(group) = self.grow(seed, &mut large) {
+                group.iter().for_each(|&i| grouped[i] = true);
+                groups.push(group);
+            }
+        }
+        groups
+    }
+
+    /// The part of `seed` (all points linked to it through steps of at most
+    /// the gap) when it holds at most `max_group` points; `None` as soon as
+    /// it is known to hold more, with the points met marked in `large`.
+    fn grow(&self, seed: usize, large: &mut [bool]) -> Option<Vec<usize>> {
+        let mut group = vec![seed];
+        let mut next = 0;
+        while let Some(&member) = group.get(next) {
+            next += 1;
+            // A denser cube's points are all within the gap of each other.
+            let mut more = !self.in_sparse_cube[member] || large[member];
+            if !more {
+                let at = self.points[member];
+                for n in self
+                    .index
+                    .nearest_k_within(at, self.max_group + 1, self.gap_m)
+                {
+                    if !group.contains(&n.index) {
+                        group.push(n.index);
+                    }
+                }
+                more = group.len() > self.max_group;
+            }
+            if more {
+                group.iter().for_each(|&i| large[i] = true);
+                return None;
+            }
+        }
+        Some(group)
+    }
+}
+
+/// For each point, whether its cube holds at most `max_group` points;
+/// `None` when no cube does. The cubes' diagonal is just under `gap_m`, so
+/// the points of a fuller cube all lie within `gap_m` of each other and
+/// belong to no group.
+fn sparse_cubes(points: &[Vec3], gap_m: f32, max_group: usize) -> Option<Vec<bool>> {
+    let edge = gap_m / 1.732_1;
+    let keys: Vec<I64Vec3> = points
+        .iter()
+        .map(|p| (*p / edge).floor().as_i64vec3())
+        .collect();
+    let mut count: HashMap<I64Vec3, usize> = HashMap::new();
+    keys.iter().for_each(|k| *count.entry(*k).or_default() += 1);
+    if !count.values().any(|&n| n <= max_group) {
+        return None;
+    }
+    Some(keys.iter().map(|k| count[k] <= max_group).collect())
 }
 
 /// Keeps one point per cubic voxel of edge `voxel_m`: the point nearest the
@@ -528,5 +738,96 @@ mod tests {
         );
         let (out, strays) = remove_stray_returns(&cloud(cluster), 30.0, 0.02).unwrap();
         assert_eq!((out.len(), strays.beside), (1000, 20));
+    }
+
+    /// A gap of 3 m whatever the spacing, groups of at most `max_group`.
+    fn rule(max_group: usize, max_share: f32) -> IsolatedGroups {
+        IsolatedGroups {
+            min_gap_m: 3.0,
+            gap_spacings: 0.0,
+            max_group,
+            max_share,
+        }
+    }
+
+    #[test]
+    fn groups_a_few_metres_above_and_below_go_and_one_beside_stays() {
+        let mut pts = column();
+        pts.extend([Vec3::new(0.0, 0.0, 35.0), Vec3::new(1.0, 0.0, 36.0)]); // 15 m above
+        pts.push(Vec3::new(0.5, 0.0, -6.0)); // 6 m under the base
+        // 8 m beside, within the column's height: a piece of a sparse crown.
+        let beside = Vec3::new(9.0, 0.0, 10.0);
+        pts.push(beside);
+        let (out, strays) = remove_isolated_groups(&cloud(pts), &rule(8, 0.01)).unwrap();
+        let expected = Strays {
+            above: 2,
+            below: 1,
+            beside: 0,
+        };
+        assert_eq!(strays, expected);
+        assert_eq!(out.points[..1000], column()[..]);
+        assert_eq!(out.points[1000..], [beside]);
+        let classes = out.classification.unwrap();
+        let expected: Vec<u8> = (0..1000).chain([1003]).map(|i| i as u8).collect();
+        assert_eq!(classes, expected);
+    }
+
+    #[test]
+    fn a_group_near_the_tree_or_bigger_than_a_handful_is_kept() {
+        let dropped = |pts: Vec<Vec3>, max_group| {
+            remove_isolated_groups(&cloud(pts), &rule(max_group, 0.01)).map(|(_, s)| s.total())
+        };
+        // 2.9 m above the top point: within the gap; 3.1 m above: not.
+        let top = column()[999];
+        for (above, expected) in [(2.9, None), (3.1, Some(1))] {
+            let mut pts = column();
+            pts.push(top + Vec3::Z * above);
+            assert_eq!(dropped(pts, 8), expected, "{above} m above");
+        }
+        // Nine returns together 10 m above: a piece of something.
+        let mut nine = column();
+        nine.extend((0..9).map(|i| Vec3::new(0.1 * i as f32, 0.0, 30.0)));
+        assert_eq!(dropped(nine.clone(), 8), None);
+        assert_eq!(dropped(nine, 9), Some(9));
+        // A sparse crown: returns 2.5 m apart in a row, none left alone.
+        let mut sparse = column();
+        sparse.extend((1..20).map(|i| Vec3::new(1.0 + 2.5 * i as f32, 0.0, 15.0)));
+        assert_eq!(dropped(sparse, 8), None);
+    }
+
+    #[test]
+    fn more_strays_than_the_share_allows_are_all_kept() {
+        let dropped = |pts: Vec<Vec3>, share| {
+            let out = remove_isolated_groups(&cloud(pts), &rule(1, share));
+            out.map(|(c, s)| (c.len(), s.above))
+        };
+        // Twelve lone returns 10 m apart above the column: 1.2 % of the points.
+        let mut many = column();
+        many.extend((0..12).map(|i| Vec3::new(10.0 * i as f32, 0.0, 40.0)));
+        assert_eq!(dropped(many.clone(), 0.01), None);
+        assert_eq!(dropped(many, 0.02), Some((1000, 12)));
+        assert_eq!(dropped(Vec::new(), 0.01), None);
+        // Nothing goes when nothing would stay.
+        let lone = vec![Vec3::ZERO, Vec3::new(10.0, 0.0, 10.0)];
+        assert_eq!(dropped(lone, 1.0), None);
+    }
+
+    /// Twenty spacings of a sparse cloud make the gap longer than 3 m: hits
+    /// 0.3 m apart, a top return 4 m above them stays, one 7 m above goes.
+    #[test]
+    fn the_gap_grows_with_the_point_spacing() {
+        let sparse: Vec<Vec3> = (0..2000)
+            .map(|i| Vec3::new(0.3 * (i % 40) as f32, 0.3 * (i / 40) as f32, 0.0))
+            .collect();
+        for (above, expected) in [(4.0, None), (7.0, Some(1))] {
+            let mut pts = sparse.clone();
+            pts.push(Vec3::new(6.0, 6.0, above));
+            let spacings = IsolatedGroups {
+                gap_spacings: 20.0,
+                ..rule(8, 0.01)
+            };
+            let out = remove_isolated_groups(&cloud(pts), &spacings);
+            assert_eq!(out.map(|(_, s)| s.above), expected, "{above} m above");
+        }
     }
 }
