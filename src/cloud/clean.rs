@@ -373,10 +373,10 @@ impl<'a> SparseCubes<'a> {
         // and one below the lowest: when both points sit in full cubes,
         // there is none (a longer gap only fills the cubes more).
         let sparse = sparse_cubes(points, rule.min_gap_m, rule.max_group)?;
-        let by_z = |a: &&Vec3, b: &&Vec3| a.z.total_cmp(&b.z);
+        let by_z = |a: &(usize, &Vec3), b: &(usize, &Vec3)| a.1.z.total_cmp(&b.1.z);
         let extreme = |p: Option<(usize, &Vec3)>| p.is_some_and(|(i, _)| sparse[i]);
-        let top = points.iter().enumerate().max_by(|a, b| by_z(&a.1, &b.1));
-        let bottom = points.iter().enumerate().min_by(|a, b| by_z(&a.1, &b.1));
+        let top = points.iter().enumerate().max_by(by_z);
+        let bottom = points.iter().enumerate().min_by(by_z);
         if !extreme(top) && !extreme(bottom) {
             return None;
         }
@@ -387,7 +387,11 @@ impl<'a> SparseCubes<'a> {
             points,
             gap_m,
             max_group: rule.max_group,
-            in_sparse_cube: sparse_cubes(points, gap_m, rule.max_group)?,
+            in_sparse_cube: if gap_m > rule.min_gap_m {
+                sparse_cubes(points, gap_m, rule.max_group)?
+            } else {
+                sparse
+            },
             index,
         })
     }
