@@ -244,7 +244,14 @@ async fn bad_input_is_a_4xx_problem() {
 
         // Over the body limit: refused from Content-Length, nothing stored.
         let huge = vec![b'1'; 200 * 1024];
-        assert_problem(srv.upload("", &huge).await, 413).await;
+        let refused = srv.upload("", &huge).await;
+        let connection = refused.headers().get("connection").cloned();
+        assert_eq!(
+            connection,
+            Some("close".parse().unwrap()),
+            "an unread body ends the connection"
+        );
+        assert_problem(refused, 413).await;
         // Chunked (no Content-Length): cut off while reading.
         assert_eq!(chunked_upload_status(&srv, 50, 4096).await, 413);
         assert_eq!(chunked_upload_status(&srv, 1, 12).await, 422);

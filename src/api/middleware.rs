@@ -47,6 +47,15 @@ pub(crate) async fn problem_details(req: Request, next: Next) -> Response {
         Problem::new(status, slug(status), detail)
     });
     problem.instance.get_or_insert(instance);
+    if status == StatusCode::PAYLOAD_TOO_LARGE {
+        // The body was refused unread (or cut off), so this connection
+        // cannot carry another request. Saying so keeps clients from reusing
+        // it: a pooled client that raced the close got `IncompleteMessage`
+        // on its next request (seen once in CI, `tests/api.rs`).
+        parts
+            .headers
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
+    }
     parts.headers.remove(header::CONTENT_LENGTH);
     parts
         .headers
