@@ -4,7 +4,7 @@
 
 mod cloud_support;
 
-use cloud_support::turned_about_x;
+use cloud_support::{lying_with_up, turned_about_x};
 use glam::{DVec3, Vec2, Vec3};
 use proptest::prelude::*;
 use silva::cloud::{CLASS_GROUND, PointCloud};
@@ -808,5 +808,30 @@ fn a_tree_on_a_steep_slope_keeps_its_ground_apart() {
         );
         let shift = tree.metrics.height_m - on_level.metrics.height_m;
         assert!(shift.abs() <= 0.2, "{name} {seed}: height {shift:+.2} m");
+    }
+}
+
+/// A clip exported with `y` or `x` up (a mesh tool's convention) lies on
+/// its side: its ground stands as a wall, which the terrain fit finds with
+/// that axis as up. The clip is rejected, and the error names the axis and
+/// how to turn it. Before this check, the clip's width was measured as the
+/// tree's height and the wall of ground returns entered the crown.
+#[test]
+fn a_clip_lying_on_its_side_is_rejected_by_its_ground() {
+    let auto = Options::default();
+    for (species, seed) in [(Species::Oak, 1), (Species::Poplar, 3), (Species::Pine, 4)] {
+        let cloud = simulate_als(&truth(species, seed), &AlsOptions::default(), seed);
+        assert!(silva::reconstruct::reconstruct(&cloud, &auto).is_ok());
+        for up in ['y', 'x'] {
+            let turned = lying_with_up(&cloud, up);
+            let e = silva::reconstruct::reconstruct(&turned, &auto)
+                .map(|tree| tree.notes)
+                .expect_err("a clip on its side")
+                .to_string();
+            assert!(
+                e.contains("onto its side") && e.contains(&format!("+{up} pointed up")),
+                "{species:?} {up}: {e}"
+            );
+        }
     }
 }

@@ -21,6 +21,13 @@
 //! A clip or a plot scan that holds its ground shows it, turned over, as a
 //! flat surface on top: [`check_ground_below`] rejects it, in both
 //! pipelines, before their ground leaves.
+//!
+//! A cloud lying on its side (exported with `y` up, as many mesh and game
+//! tools do, or turned by 90°) is rejected the same ways, with each
+//! horizontal axis tried as up: its ground stands as a wall
+//! ([`check_ground_beside`]), or a slice near one of its side ends rings
+//! the trunk while none near its bottom does ([`check_trunk_not_beside`]).
+//! The error names the axis that looks up.
 
 use std::collections::HashMap;
 
@@ -30,6 +37,7 @@ use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
 use crate::reconstruct::ground::{
     BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, fit_terrain,
+    terrain_cell_share,
 };
 use crate::reconstruct::radii::{circle_rms, median, robust_circle, sectors_seen};
 
@@ -96,6 +104,43 @@ pub(crate) fn check_stands_on_its_trunk(
             near,
             far,
             200.0 * bottom
+        )));
+    }
+    if bottom == 0.0 {
+        check_trunk_not_beside(points, link_m)?;
+    }
+    Ok(())
+}
+
+/// Rejects a cloud whose trunk stands at one of its sides: a terrestrial
+/// scan exported with `y` up, or turned by 90°, lies with its trunk
+/// horizontal, so no slice near its bottom rings a stem, while a slice
+/// across the trunk near its base, the cloud's end along the axis that
+/// would be up ([`SIDEWAYS`]), does. Called only when the bottom holds no
+/// ring; an upright tree's side ends hold only twigs.
+fn check_trunk_not_beside(points: &[Vec3], link_m: f32) -> Result<(), ReconstructError> {
+    let (axis, radius) = SIDEWAYS
+        .iter()
+        .map(|(axis, turn)| {
+            let turned: Vec<Vec3> = points.iter().map(|&p| turn(p)).collect();
+            let (low, high) = super::z_range(&turned);
+            let (near, far) = (SLICE_SHARE.0 * (high - low), SLICE_SHARE.1 * (high - low));
+            (
+                *axis,
+                thickest_stem(&slice(&turned, low + near, low + far), link_m),
+            )
+        })
+        .fold(
+            ("", 0.0),
+            |best, side| if side.1 > best.1 { side } else { best },
+        );
+    if radius >= MIN_TRUNK_RADIUS_M {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud looks tilted onto its side: a stem {:.0} cm thick stands across its end \
+             opposite {axis}, as a trunk would if {axis} pointed up, and none rings its bottom \
+             (turn the cloud so that {axis} becomes +z; a y-up export needs (x, y, z) → \
+             (x, −z, y))",
+            200.0 * radius
         )));
     }
     Ok(())
@@ -368,6 +413,7 @@ pub(super) fn check_ground_below(
             bottom_share * 100.0
         )));
     }
+    check_ground_beside(points, bottom_share)?;
     let under = split
         .terrain
         .as_ref()
@@ -381,6 +427,81 @@ pub(super) fn check_ground_below(
     }
     Ok(())
 }
+
+/// Points turned so that another axis is their `z`.
+type Turn = fn(Vec3) -> Vec3;
+
+/// The four ways a cloud can lie on its side: the axis that would point up
+/// and the points turned so that it is their `z` (the other two keep their
+/// handedness; [`fit_terrain`] needs only the up axis).
+const SIDEWAYS: [(&str, Turn); 4] = [
+    ("+x", |p| Vec3::new(p.y, p.z, p.x)),
+    ("−x", |p| Vec3::new(p.z, p.y, -p.x)),
+    ("+y", |p| Vec3::new(p.z, p.x, p.y)),
+    ("−y", |p| Vec3::new(p.x, p.z, -p.y)),
+];
+
+/// [`check_ground_beside`] looks at every this-many-th point of a larger
+/// cloud: a grid of lowest points needs no more, and the test then costs
+/// the same on a 5-million-point scan.
+const MAX_SIDEWAYS_POINTS: usize = 200_000;
+
+/// Rejects a cloud that lies on its side: its ground, turned with it,
+/// stands as a wall. A clip exported with `y` up (the convention of many
+/// mesh and game tools) or turned by 90° otherwise shows no ground below,
+/// and the reconstruction took the clip's width for the tree's height
+/// and a wall of ground returns for its crown. The terrain fit is run with
+/// each horizontal axis as up ([`SIDEWAYS`]); the cloud is rejected when one
+/// of them finds ground under [`MIN_SIDE_GROUND_SHARE`] of its cells and
+/// `bottom_share` (the upright fit's) is lower by
+/// [`SIDE_GROUND_MARGIN`]. Turns up to 45° leave the ground below, where
+/// the upright fit finds it sloping ([`super::ground::STEEP_TERRAIN_DEG`]).
+fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), ReconstructError> {
+    let step = points.len().div_ceil(MAX_SIDEWAYS_POINTS).max(1);
+    let (axis, share) = SIDEWAYS
+        .iter()
+        .map(|(axis, turn)| {
+            let turned: Vec<Vec3> = points.iter().step_by(step).map(|&p| turn(p)).collect();
+            let (low, high) = super::z_range(&turned);
+            // Nothing as tall as a tree stands on a side narrower than one:
+            // seen from the side, a thin stem's whole bark is within the
+            // ground tolerance of its lowest points, and "bare". The full
+            // fit only where the plane can hold enough cells.
+            let share = if high - low >= MIN_HEIGHT_M
+                && terrain_cell_share(&turned) >= MIN_SIDE_GROUND_SHARE
+            {
+                fit_terrain(&turned)
+                    .filter(Terrain::is_ground)
+                    .map_or(0.0, |t| t.cell_share())
+            } else {
+                0.0
+            };
+            (*axis, share)
+        })
+        .fold(
+            ("", 0.0),
+            |best, side| if side.1 > best.1 { side } else { best },
+        );
+    if share >= MIN_SIDE_GROUND_SHARE && share > bottom_share + SIDE_GROUND_MARGIN {
+        return Err(ReconstructError::Degenerate(format!(
+            "the cloud looks tilted onto its side: a flat surface covers {:.0} % of its end \
+             opposite {axis}, as ground would if {axis} pointed up, and only {:.0} % of its \
+             bottom (turn the cloud so that {axis} becomes +z; a y-up export needs \
+             (x, y, z) → (x, −z, y))",
+            share * 100.0,
+            bottom_share * 100.0
+        )));
+    }
+    Ok(())
+}
+
+/// The share of a side's grid cells whose lowest point is ground from which
+/// [`check_ground_beside`] takes that side for the ground, as
+/// [`check_ground_below`] does for the top.
+const MIN_SIDE_GROUND_SHARE: f32 = 0.5;
+
+/// ...when the upright fit's share is lower by at least this.
+const SIDE_GROUND_MARGIN: f32 = 0.2;
 
 /// Share of the points off the ground surface that lie under it, from which
 /// [`check_ground_below`] takes a cloud as upside down. The terrain fit of a
@@ -448,6 +569,28 @@ mod tests {
         let err = check_stands_on_its_trunk(&flipped, 0.04).unwrap_err();
         assert!(err.to_string().contains("upside down"), "{err}");
         assert!(err.to_string().contains("z axis points up"), "{err}");
+    }
+
+    #[test]
+    fn a_column_on_its_side_names_the_axis_that_is_up() {
+        // Twigs 1.5 m out as well: lying, the cloud is 3 m tall.
+        let mut tree = column();
+        for k in 0..8 {
+            let a = (k as f32 + 0.5) * std::f32::consts::TAU / 8.0;
+            tree.extend(stem(
+                1.5 * Vec2::new(a.cos(), a.sin()),
+                0.01,
+                4.0,
+                10.0,
+                1500,
+            ));
+        }
+        assert_eq!(check_stands_on_its_trunk(&tree, 0.04), Ok(()));
+        let y_up: Vec<Vec3> = tree.iter().map(|p| Vec3::new(p.x, p.z, -p.y)).collect();
+        let err = check_stands_on_its_trunk(&y_up, 0.04).unwrap_err();
+        let e = err.to_string();
+        assert!(e.contains("onto its side") && e.contains("+y"), "{e}");
+        assert!(e.contains("40 cm thick"), "{e}");
     }
 
     /// [`check_stands_on_its_trunk`]'s link on tree13 (four times its

@@ -17,3 +17,18 @@ pub fn turned_about_x(cloud: &PointCloud, degrees: f32) -> PointCloud {
         .collect();
     PointCloud::from_points(cloud.offset, points)
 }
+
+/// `cloud` as exported with the `up` axis (`'x'` or `'y'`) pointing up, as
+/// mesh and game tools write it: the tree lies on its side, its top towards
+/// +`up`, and z runs across it.
+pub fn lying_with_up(cloud: &PointCloud, up: char) -> PointCloud {
+    let turn = |p: Vec3| match up {
+        'x' => Vec3::new(p.z, p.y, -p.x),
+        'y' => Vec3::new(p.x, p.z, -p.y),
+        _ => panic!("up is 'x' or 'y', not {up:?}"),
+    };
+    PointCloud::from_points(
+        cloud.offset,
+        cloud.points.iter().map(|&p| turn(p)).collect(),
+    )
+}
