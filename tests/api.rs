@@ -1108,3 +1108,35 @@ async fn the_tree_serves_its_model_record() {
     })
     .await;
 }
+
+/// A terrestrial scan exported with `y` up (as mesh tools write it) lies on
+/// its side: with `wait=true` the upload is a 422 whose detail says so and
+/// names the axis that looks up, instead of a tree measured across its
+/// crown.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cloud_lying_on_its_side_is_a_422_naming_the_axis() {
+    let cloud = common::synthetic_cloud(ORIGIN, 2);
+    let lying = silva::cloud::PointCloud::from_points(
+        cloud.offset,
+        cloud
+            .points
+            .iter()
+            .map(|p| glam::Vec3::new(p.x, p.z, -p.y))
+            .collect(),
+    );
+    let scan = silva::cloud::to_laz_bytes(&lying).unwrap();
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let problem = assert_problem(srv.upload("wait=true", &scan).await, 422).await;
+            let detail = problem["detail"].as_str().unwrap();
+            assert!(
+                detail.contains("onto its side") && detail.contains("+y pointed up"),
+                "{problem}"
+            );
+            srv.stop().await;
+        }
+    })
+    .await;
+}
