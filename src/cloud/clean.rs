@@ -1,13 +1,20 @@
 //! Clean-up passes run before reconstruction: near-duplicate removal,
-//! statistical outlier removal, stray-return removal and voxel downsampling.
+//! statistical outlier removal, the removal of returns classified as noise,
+//! of stray returns far from the rest and of small isolated groups above or
+//! below it, and voxel downsampling.
 //!
 //! AdTree (Du et al. 2019, §3.1) removes points closer than 0.001 × the
 //! bounding-box diagonal before building its Delaunay graph, because
 //! coincident points make the triangulation and the minimum spanning tree
 //! degenerate. Statistical outlier removal drops isolated returns (birds,
 //! dust, multipath) whose mean distance to their k nearest neighbours is far
-//! above the cloud's average. Voxel downsampling caps density so that dense
-//! terrestrial scans cost the same as airborne ones downstream.
+//! above the cloud's average. [`remove_classified_noise`] drops what the
+//! producer labelled noise; [`remove_stray_returns`] the returns with no
+//! other within tens of metres, and [`remove_isolated_groups`] a handful
+//! alone a few metres above or below the tree (a bird over the crown,
+//! multipath under the ground), which would otherwise set the tree's height
+//! or base. Voxel downsampling caps density so that dense terrestrial scans
+//! cost the same as airborne ones downstream.
 //!
 //! All passes keep real points (never synthesise averages), so attributes
 //! travel with them, and they keep the input order of the survivors. Neighbour
