@@ -476,8 +476,10 @@ fn monotone_fit(skeleton: &Skeleton, radii: &[f32]) -> Vec<f32> {
 /// Fits the trunk circle at breast height, or estimates it.
 ///
 /// The slice's points are projected onto the breast-height plane along the
-/// trunk's lean, which the skeleton gives only roughly (see [`TrunkAxis`]):
-/// the fit is tried along each of its candidate directions, and the
+/// trunk's lean, which the skeleton gives only roughly (its chord near
+/// breast height zigzags on sparse scans of thick trunks, a line through
+/// its nodes is pulled by forks): the fit is tried along each candidate
+/// direction, and the
 /// sharpest ring wins (most inliers per millimetre of RMS), as a wrong lean
 /// smears the ring into a disc.
 pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &Params) -> TrunkFit {
