@@ -318,6 +318,20 @@ fn low_branches_are_no_lean() {
     assert!(leans.is_empty(), "{leans:?}");
 }
 
+/// A Weber–Penn tree of each species (seeds 1–4), scanned from four
+/// positions with the default terrestrial settings.
+fn one_scan_per_species() -> Vec<(silva::synth::Species, PointCloud)> {
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    [Species::Oak, Species::Birch, Species::Poplar, Species::Pine]
+        .into_iter()
+        .zip(1..)
+        .map(|(species, seed)| {
+            let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
+            (species, simulate_tls(&truth, &TlsOptions::default(), seed))
+        })
+        .collect()
+}
+
 /// A Weber–Penn tree of every species, scanned from four positions and
 /// turned upside down, is rejected in the automatic mode (the pine's then
 /// goes to the airborne pipeline, whose trunk test sees no trunk at the
@@ -325,15 +339,7 @@ fn low_branches_are_no_lean() {
 /// alone let the conical and columnar crowns through.
 #[test]
 fn a_synthetic_tree_of_any_species_upside_down_is_an_error() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    for (species, seed) in [
-        (Species::Oak, 1),
-        (Species::Birch, 2),
-        (Species::Poplar, 3),
-        (Species::Pine, 4),
-    ] {
-        let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
-        let scan = simulate_tls(&truth, &TlsOptions::default(), seed);
+    for (species, scan) in one_scan_per_species() {
         let upright = reconstruct(&scan, &Options::default());
         assert!(upright.is_ok(), "{species:?}: {:?}", upright.err());
         let flipped = PointCloud::from_points(
@@ -357,15 +363,7 @@ fn a_synthetic_tree_of_any_species_upside_down_is_an_error() {
 /// note; `silva synth --scan tls` of the same species and seeds).
 #[test]
 fn a_synthetic_tree_lying_on_its_side_is_an_error() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    for (species, seed) in [
-        (Species::Oak, 1),
-        (Species::Birch, 2),
-        (Species::Poplar, 3),
-        (Species::Pine, 4),
-    ] {
-        let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
-        let scan = simulate_tls(&truth, &TlsOptions::default(), seed);
+    for (species, scan) in one_scan_per_species() {
         for up in ['y', 'x'] {
             let lying = lying_with_up(&scan, up);
             let err = reconstruct(&lying, &Options::default())
