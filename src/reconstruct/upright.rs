@@ -119,28 +119,28 @@ pub(crate) fn check_stands_on_its_trunk(
 /// would be up ([`SIDEWAYS`]), does. Called only when the bottom holds no
 /// ring; an upright tree's side ends hold only twigs.
 fn check_trunk_not_beside(points: &[Vec3], link_m: f32) -> Result<(), ReconstructError> {
-    let (axis, radius) = SIDEWAYS
+    let (side, radius) = SIDEWAYS
         .iter()
-        .map(|(axis, turn)| {
-            let turned: Vec<Vec3> = points.iter().map(|&p| turn(p)).collect();
+        .map(|side| {
+            let turned: Vec<Vec3> = points.iter().map(|&p| (side.turn)(p)).collect();
             let (low, high) = super::z_range(&turned);
             let (near, far) = (SLICE_SHARE.0 * (high - low), SLICE_SHARE.1 * (high - low));
-            (
-                *axis,
-                thickest_stem(&slice(&turned, low + near, low + far), link_m),
-            )
+            let stem = thickest_stem(&slice(&turned, low + near, low + far), link_m);
+            (side, stem)
         })
         .fold(
-            ("", 0.0),
-            |best, side| if side.1 > best.1 { side } else { best },
+            (&SIDEWAYS[0], 0.0),
+            |best, s| if s.1 > best.1 { s } else { best },
         );
     if radius >= MIN_TRUNK_RADIUS_M {
         return Err(ReconstructError::Degenerate(format!(
-            "the cloud looks tilted onto its side: a stem {:.0} cm thick stands across its end \
-             opposite {axis}, as a trunk would if {axis} pointed up, and none rings its bottom \
-             (turn the cloud so that {axis} becomes +z; a y-up export needs (x, y, z) → \
-             (x, −z, y))",
-            200.0 * radius
+            "the cloud looks tilted onto its side: a stem {:.0} cm thick stands across its {} \
+             end, as a trunk would if {} pointed up, and none rings its bottom (turn the cloud \
+             so that {} becomes +z; a y-up export needs (x, y, z) → (x, −z, y))",
+            200.0 * radius,
+            side.base,
+            side.up,
+            side.up
         )));
     }
     Ok(())
@@ -431,14 +431,39 @@ pub(super) fn check_ground_below(
 /// Points turned so that another axis is their `z`.
 type Turn = fn(Vec3) -> Vec3;
 
-/// The four ways a cloud can lie on its side: the axis that would point up
-/// and the points turned so that it is their `z` (the other two keep their
-/// handedness; [`fit_terrain`] needs only the up axis).
-const SIDEWAYS: [(&str, Turn); 4] = [
-    ("+x", |p| Vec3::new(p.y, p.z, p.x)),
-    ("−x", |p| Vec3::new(p.z, p.y, -p.x)),
-    ("+y", |p| Vec3::new(p.z, p.x, p.y)),
-    ("−y", |p| Vec3::new(p.x, p.z, -p.y)),
+/// One way a cloud can lie on its side.
+struct Side {
+    /// The axis that would point up.
+    up: &'static str,
+    /// The cloud's end where the ground or the trunk's base would be.
+    base: &'static str,
+    /// The points turned so that `up` is their `z` (the other two keep
+    /// their handedness; [`fit_terrain`] needs only the up axis).
+    turn: Turn,
+}
+
+/// The four ways a cloud can lie on its side.
+const SIDEWAYS: [Side; 4] = [
+    Side {
+        up: "+x",
+        base: "−x",
+        turn: |p| Vec3::new(p.y, p.z, p.x),
+    },
+    Side {
+        up: "−x",
+        base: "+x",
+        turn: |p| Vec3::new(p.z, p.y, -p.x),
+    },
+    Side {
+        up: "+y",
+        base: "−y",
+        turn: |p| Vec3::new(p.z, p.x, p.y),
+    },
+    Side {
+        up: "−y",
+        base: "+y",
+        turn: |p| Vec3::new(p.x, p.z, -p.y),
+    },
 ];
 
 /// [`check_ground_beside`] looks at every this-many-th point of a larger
@@ -452,16 +477,20 @@ const MAX_SIDEWAYS_POINTS: usize = 200_000;
 /// and the reconstruction took the clip's width for the tree's height
 /// and a wall of ground returns for its crown. The terrain fit is run with
 /// each horizontal axis as up ([`SIDEWAYS`]); the cloud is rejected when one
-/// of them finds ground under [`MIN_SIDE_GROUND_SHARE`] of its cells and
+/// of them finds ground in at least [`MIN_SIDE_GROUND_SHARE`] of its cells and
 /// `bottom_share` (the upright fit's) is lower by
 /// [`SIDE_GROUND_MARGIN`]. Turns up to 45° leave the ground below, where
 /// the upright fit finds it sloping ([`super::ground::STEEP_TERRAIN_DEG`]).
 fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), ReconstructError> {
     let step = points.len().div_ceil(MAX_SIDEWAYS_POINTS).max(1);
-    let (axis, share) = SIDEWAYS
+    let (side, share) = SIDEWAYS
         .iter()
-        .map(|(axis, turn)| {
-            let turned: Vec<Vec3> = points.iter().step_by(step).map(|&p| turn(p)).collect();
+        .map(|side| {
+            let turned: Vec<Vec3> = points
+                .iter()
+                .step_by(step)
+                .map(|&p| (side.turn)(p))
+                .collect();
             let (low, high) = super::z_range(&turned);
             // Nothing as tall as a tree stands on a side narrower than one:
             // seen from the side, a thin stem's whole bark is within the
@@ -476,20 +505,22 @@ fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), Reconst
             } else {
                 0.0
             };
-            (*axis, share)
+            (side, share)
         })
         .fold(
-            ("", 0.0),
-            |best, side| if side.1 > best.1 { side } else { best },
+            (&SIDEWAYS[0], 0.0),
+            |best, s| if s.1 > best.1 { s } else { best },
         );
     if share >= MIN_SIDE_GROUND_SHARE && share > bottom_share + SIDE_GROUND_MARGIN {
         return Err(ReconstructError::Degenerate(format!(
-            "the cloud looks tilted onto its side: a flat surface covers {:.0} % of its end \
-             opposite {axis}, as ground would if {axis} pointed up, and only {:.0} % of its \
-             bottom (turn the cloud so that {axis} becomes +z; a y-up export needs \
-             (x, y, z) → (x, −z, y))",
+            "the cloud looks tilted onto its side: a flat surface covers {:.0} % of its {} \
+             end, as ground would if {} pointed up, and only {:.0} % of its bottom (turn the \
+             cloud so that {} becomes +z; a y-up export needs (x, y, z) → (x, −z, y))",
             share * 100.0,
-            bottom_share * 100.0
+            side.base,
+            side.up,
+            bottom_share * 100.0,
+            side.up
         )));
     }
     Ok(())
