@@ -119,19 +119,11 @@ pub(crate) fn check_stands_on_its_trunk(
 /// would be up ([`SIDEWAYS`]), does. Called only when the bottom holds no
 /// ring; an upright tree's side ends hold only twigs.
 fn check_trunk_not_beside(points: &[Vec3], link_m: f32) -> Result<(), ReconstructError> {
-    let (side, radius) = SIDEWAYS
-        .iter()
-        .map(|side| {
-            let turned: Vec<Vec3> = points.iter().map(|&p| (side.turn)(p)).collect();
-            let (low, high) = super::z_range(&turned);
-            let (near, far) = (SLICE_SHARE.0 * (high - low), SLICE_SHARE.1 * (high - low));
-            let stem = thickest_stem(&slice(&turned, low + near, low + far), link_m);
-            (side, stem)
-        })
-        .fold(
-            (&SIDEWAYS[0], 0.0),
-            |best, s| if s.1 > best.1 { s } else { best },
-        );
+    let (side, radius) = most_on_a_side(points, 1, |turned| {
+        let (low, high) = super::z_range(turned);
+        let (near, far) = (SLICE_SHARE.0 * (high - low), SLICE_SHARE.1 * (high - low));
+        thickest_stem(&slice(turned, low + near, low + far), link_m)
+    });
     if radius >= MIN_TRUNK_RADIUS_M {
         return Err(ReconstructError::Degenerate(format!(
             "the cloud looks tilted onto its side: a stem {:.0} cm thick stands across its {} \
@@ -443,7 +435,7 @@ struct Side {
 }
 
 /// The four ways a cloud can lie on its side.
-const SIDEWAYS: [Side; 4] = [
+static SIDEWAYS: [Side; 4] = [
     Side {
         up: "+x",
         base: "−x",
@@ -466,6 +458,29 @@ const SIDEWAYS: [Side; 4] = [
     },
 ];
 
+/// The side on which `measure` of the cloud turned to stand on it (every
+/// `step`-th point) is largest, with that measure.
+fn most_on_a_side(
+    points: &[Vec3],
+    step: usize,
+    measure: impl Fn(&[Vec3]) -> f32,
+) -> (&'static Side, f32) {
+    SIDEWAYS
+        .iter()
+        .map(|side| {
+            let turned: Vec<Vec3> = points
+                .iter()
+                .step_by(step)
+                .map(|&p| (side.turn)(p))
+                .collect();
+            (side, measure(&turned))
+        })
+        .fold(
+            (&SIDEWAYS[0], 0.0),
+            |best, s| if s.1 > best.1 { s } else { best },
+        )
+}
+
 /// [`check_ground_beside`] looks at every this-many-th point of a larger
 /// cloud: a grid of lowest points needs no more, and the test then costs
 /// the same on a 5-million-point scan.
@@ -483,34 +498,20 @@ const MAX_SIDEWAYS_POINTS: usize = 200_000;
 /// the upright fit finds it sloping ([`super::ground::STEEP_TERRAIN_DEG`]).
 fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), ReconstructError> {
     let step = points.len().div_ceil(MAX_SIDEWAYS_POINTS).max(1);
-    let (side, share) = SIDEWAYS
-        .iter()
-        .map(|side| {
-            let turned: Vec<Vec3> = points
-                .iter()
-                .step_by(step)
-                .map(|&p| (side.turn)(p))
-                .collect();
-            let (low, high) = super::z_range(&turned);
-            // Nothing as tall as a tree stands on a side narrower than one:
-            // seen from the side, a thin stem's whole bark is within the
-            // ground tolerance of its lowest points, and "bare". The full
-            // fit only where the plane can hold enough cells.
-            let share = if high - low >= MIN_HEIGHT_M
-                && terrain_cell_share(&turned) >= MIN_SIDE_GROUND_SHARE
-            {
-                fit_terrain(&turned)
-                    .filter(Terrain::is_ground)
-                    .map_or(0.0, |t| t.cell_share())
-            } else {
-                0.0
-            };
-            (side, share)
-        })
-        .fold(
-            (&SIDEWAYS[0], 0.0),
-            |best, s| if s.1 > best.1 { s } else { best },
-        );
+    let (side, share) = most_on_a_side(points, step, |turned| {
+        let (low, high) = super::z_range(turned);
+        // Nothing as tall as a tree stands on a side narrower than one:
+        // seen from the side, a thin stem's whole bark is within the
+        // ground tolerance of its lowest points, and "bare". The full fit
+        // only where the plane can hold enough cells.
+        if high - low >= MIN_HEIGHT_M && terrain_cell_share(turned) >= MIN_SIDE_GROUND_SHARE {
+            fit_terrain(turned)
+                .filter(Terrain::is_ground)
+                .map_or(0.0, |t| t.cell_share())
+        } else {
+            0.0
+        }
+    });
     if share >= MIN_SIDE_GROUND_SHARE && share > bottom_share + SIDE_GROUND_MARGIN {
         return Err(ReconstructError::Degenerate(format!(
             "the cloud looks tilted onto its side: a flat surface covers {:.0} % of its {} \
