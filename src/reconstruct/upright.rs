@@ -497,6 +497,11 @@ const MAX_SIDEWAYS_POINTS: usize = 200_000;
 /// [`SIDE_GROUND_MARGIN`]. Turns up to 45° leave the ground below, where
 /// the upright fit finds it sloping ([`super::ground::STEEP_TERRAIN_DEG`]).
 fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), ReconstructError> {
+    // No side can beat ground under every cell of the bottom by the margin
+    // (an airborne clip with its ground, the inventory's usual input).
+    if bottom_share + SIDE_GROUND_MARGIN >= 1.0 {
+        return Ok(());
+    }
     let step = points.len().div_ceil(MAX_SIDEWAYS_POINTS).max(1);
     let (side, share) = most_on_a_side(points, step, |turned| {
         let (low, high) = super::z_range(turned);
