@@ -288,7 +288,11 @@ fn separated(
     }
     let split = split_ground(&finite);
     super::upright::check_ground_below(&finite.points, &split)?;
-    super::upright::check_stands_on_its_trunk(&split.tree.points, STEM_LINK_M)?;
+    super::upright::check_stands_on_its_trunk(
+        &split.tree.points,
+        STEM_LINK_M,
+        super::upright::SPARSE_SLICES,
+    )?;
     notes.push(split.note());
     notes.extend(split.steep_note());
     if split.tree.len() < MIN_TREE_POINTS {
@@ -464,7 +468,8 @@ fn contraction_radius(candidates: &[Vec3], params: &Params, notes: &mut Vec<Stri
 /// over, have median point spacings of 0.09–0.13 m: at 0.1 m their trunk's
 /// bark fell apart into pieces too small to fit a ring, and 8 of the 20
 /// turned over were rejected; at 0.15 m, 12 (the misses are birches and
-/// pines, whose trunk slice holds under 30 points), none upright. Airborne
+/// pines, whose trunk slice holds under 30 points), none upright; with
+/// the taller slices of [`super::upright::SPARSE_SLICES`], 18. Airborne
 /// points do not ring a stem at this link either (ahn3_delft's lie 0.22 m
 /// apart, the synthetic AHN-like clips' about 0.14 m): the report of
 /// `silva eval --synthetic 100 --scan als` is the same at 0.1 and 0.15 m,

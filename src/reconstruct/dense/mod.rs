@@ -470,7 +470,11 @@ fn neighbour_graph(
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
     notes.extend(super::check_upright(&points, base_z, top_z)?);
-    super::upright::check_stands_on_its_trunk(&points, (STEM_LINK_SPACINGS * spacing).max(0.02))?;
+    super::upright::check_stands_on_its_trunk(
+        &points,
+        (STEM_LINK_SPACINGS * spacing).max(0.02),
+        super::upright::DENSE_SLICES,
+    )?;
     Ok(NeighbourGraph {
         points,
         edges,
