@@ -929,7 +929,7 @@ fn sectors_holding(points: &[Vec2], centre: Vec2, sectors: usize, min_points: u3
 /// of its inliers: one stray return is no view of the bark. (With 300
 /// stray points added to tree13's box, a shallow arc of its trunk and one
 /// stray 0.9 m off made a 1.07 m circle "seen" over 4 sectors.)
-fn trunk_sectors_seen(inliers: &[Vec2], centre: Vec2) -> u32 {
+pub(crate) fn trunk_sectors_seen(inliers: &[Vec2], centre: Vec2) -> u32 {
     sectors_holding(inliers, centre, SECTION_SECTORS, 2)
 }
 

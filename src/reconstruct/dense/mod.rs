@@ -43,7 +43,12 @@
 //! 6. `twins`: a twig that the stem reached more than once (pieces along
 //!    the bark, each joined across the wood) joined to the stem once, its
 //!    other pieces hanging from their twins;
-//! 7. `tips`: each tip moved from its last section's centroid to the
+//! 7. `stem_axis`: the trunk tracked up and down the main stem by circles
+//!    fitted to slices half a metre tall, from a seed fit low on the stem,
+//!    and its nodes moved onto their centres: a sparse one-sided trunk's
+//!    sections are too thin for a circle, and their centroids lie towards
+//!    the scanner;
+//! 8. `tips`: each tip moved from its last section's centroid to the
 //!    scan's last point ahead of it, and each twig on by the median gap
 //!    between a twig's last scanned point and its end.
 //!
@@ -65,6 +70,7 @@ mod graph;
 mod lateral_base;
 mod simplify;
 mod skeletonize;
+mod stem_axis;
 mod tips;
 mod twins;
 
@@ -215,6 +221,28 @@ pub struct Params {
     pub twin_gap_bins: f32,
     /// …when its join turns by at least this angle, in degrees.
     pub twin_min_turn_deg: f32,
+    /// The trunk is tracked up and down the main stem by circles fitted to
+    /// the points this far (metres) above and below each node, and its
+    /// nodes moved onto their centres (see `stem_axis`; 0: off)…
+    pub stem_half_slice_m: f32,
+    /// …across the stem's direction between the chain's nodes this far
+    /// (metres) below and above it…
+    pub stem_axis_window_m: f32,
+    /// …taking points within this distance (metres) of the node across
+    /// the stem (the largest trunk radius looked for)…
+    pub stem_reach_m: f32,
+    /// …when at least this many of them lie on the circle…
+    pub stem_min_points: usize,
+    /// …starting from the first fit within [`Params::stem_seed_height_m`]
+    /// of the root with at least this many…
+    pub stem_seed_points: usize,
+    /// …(metres above the root)…
+    pub stem_seed_height_m: f32,
+    /// …for as long as the fitted radius changes by at most this share
+    /// from one tracked node to the next…
+    pub stem_max_change: f32,
+    /// …and fading the move out over this length of stem (metres) beyond.
+    pub stem_fade_m: f32,
     /// Split cross-sections that hold both stems of a narrow fork (see
     /// `fork_rings`)…
     pub split_two_stems: bool,
@@ -320,6 +348,14 @@ impl Default for Params {
             lateral_max_drop_spreads: 4.0,
             lateral_miss_spreads: 1.0,
             twin_gap_bins: 3.0,
+            stem_half_slice_m: 0.25,
+            stem_axis_window_m: 1.0,
+            stem_reach_m: 0.6,
+            stem_min_points: 20,
+            stem_seed_points: 30,
+            stem_seed_height_m: 2.5,
+            stem_max_change: 0.3,
+            stem_fade_m: 1.0,
             twin_min_turn_deg: 30.0,
             split_two_stems: true,
             two_stem_spread_bins: 2.0,
@@ -388,10 +424,12 @@ pub fn reconstruct(
         .map_err(|e| ReconstructError::Degenerate(format!("internal skeleton error: {e}")))?;
     let skeleton = simplified(skeleton, graph.bin_m, params);
     let mut skeleton = refined(skeleton, graph.bin_m, params, interrupt)?;
-    interrupt.check("tip placement")?;
+    interrupt.check("stem axis")?;
     let tree_points: Vec<Vec3> = graph.points.iter().map(|&p| p - root).collect();
+    let index = PointIndex::new(&tree_points);
+    recentre_stem(&mut skeleton, &tree_points, &index, graph.bin_m, params);
+    interrupt.check("tip placement")?;
     if params.tips_reach_last_points || params.tips_expected_gap {
-        let index = PointIndex::new(&tree_points);
         let rule = tips::TipRule {
             bin_m: graph.bin_m,
             reach_last_points: params.tips_reach_last_points,
@@ -646,6 +684,32 @@ fn refined(
     );
     skeleton.order_main_extension_first();
     Ok(skeleton)
+}
+
+/// Step 7: the trunk's nodes on the centres of circles fitted to tall
+/// slices of its bark (see `stem_axis`), unless turned off.
+fn recentre_stem(
+    skeleton: &mut Skeleton,
+    points: &[Vec3],
+    index: &PointIndex,
+    bin_m: f32,
+    params: &Params,
+) {
+    if params.stem_half_slice_m <= 0.0 {
+        return;
+    }
+    let rule = stem_axis::StemRule {
+        half_window_m: params.stem_half_slice_m,
+        axis_window_m: params.stem_axis_window_m,
+        reach_m: params.stem_reach_m,
+        min_radius_m: 2.0 * bin_m,
+        min_points: params.stem_min_points,
+        seed_points: params.stem_seed_points,
+        seed_height_m: params.stem_seed_height_m,
+        max_change: params.stem_max_change,
+        fade_m: params.stem_fade_m,
+    };
+    stem_axis::recentre_stem(skeleton, points, index, &rule);
 }
 
 /// Removes near-duplicates (points within one `duplicate_m` voxel), then
