@@ -96,13 +96,21 @@ pub(super) fn recentre_stem(
     let chain = main_stem(skeleton);
     let fit = |k: usize| slice_fit(skeleton, &chain, k, points, index, rule);
     let base_z = skeleton.position(NodeId::ROOT).z;
-    let seed = (1..chain.len())
-        .take_while(|&k| skeleton.position(chain[k]).z - base_z <= rule.seed_height_m)
-        .find_map(|k| {
-            fit(k)
-                .filter(|f| f.inliers >= rule.seed_points)
-                .map(|f| (k, f))
-        });
+    // The nodes below the seed, with their fits, for the walk down.
+    let mut below = Vec::new();
+    let mut seed = None;
+    for (k, &node) in chain.iter().enumerate().skip(1) {
+        if skeleton.position(node).z - base_z > rule.seed_height_m {
+            break;
+        }
+        match fit(k) {
+            Some(f) if f.inliers >= rule.seed_points => {
+                seed = Some((k, f));
+                break;
+            }
+            other => below.push((k, other)),
+        }
+    }
     let Some((seed, seed_fit)) = seed else {
         return 0;
     };
@@ -112,7 +120,7 @@ pub(super) fn recentre_stem(
         (seed + 1..chain.len()).map(|k| (k, fit(k))),
         rule,
     ));
-    tracked.extend(track(seed_fit, (1..seed).rev().map(|k| (k, fit(k))), rule));
+    tracked.extend(track(seed_fit, below.into_iter().rev(), rule));
     tracked.sort_by_key(|&(k, _)| k);
     let offsets = offsets(skeleton, &chain, &tracked, rule.fade_m);
     for (k, offset) in offsets.into_iter().enumerate().skip(1) {
