@@ -53,7 +53,9 @@
 //!    between a twig's last scanned point and its end.
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
-//! for both pipelines.
+//! for both pipelines. The skeleton's radii on the way are the sections'
+//! spreads, and on the tracked trunk the fitted circles' radii (step 7),
+//! which the radius stage reads as the stem's wood.
 
 use glam::Vec3;
 
@@ -386,7 +388,9 @@ const TWIN_GAP_SHARE: f32 = 0.5;
 /// The dense pipeline's result, before radii.
 #[derive(Debug, Clone)]
 pub struct DenseOutput {
-    /// The skeleton (radii 0); its anchor is the absolute trunk base.
+    /// The skeleton, its radii the sections' spreads and the tracked
+    /// trunk's fitted radii (module docs); its anchor is the absolute trunk
+    /// base.
     pub skeleton: Skeleton,
     /// The points the skeleton was built from (cleaned, without ground),
     /// relative to the skeleton's anchor: `cloud.offset == anchor.origin`.
@@ -397,7 +401,7 @@ pub struct DenseOutput {
     pub bin_width_m: f32,
 }
 
-/// Builds the skeleton of the one tree in `cloud` (radii left at 0),
+/// Builds the skeleton of the one tree in `cloud` (radii provisional),
 /// checking `interrupt` before each step. The steps are those of the
 /// module documentation, one function each.
 pub fn reconstruct(
