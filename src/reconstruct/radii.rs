@@ -295,8 +295,17 @@ fn measure_sections(
 /// pick their internode through the nearest of axis samples taken every
 /// [`SAMPLE_STEP_M`]; each is measured across the internode's axis line (a
 /// point past a twig's last node measured from that node would count length
-/// as girth). A branch's samples inside the stem's wood ([`StemWood`]) are
-/// left out. See [`section_radius`] for the radius of one section.
+/// as girth). Around the stem ([`StemWood`]):
+/// - a branch's samples inside the stem's wood are left out;
+/// - a point nearer to the stem's bark than to its nearest sample, on a
+///   branch internode within reach of the stem's wood, is the stem's: a
+///   branch's samples just outside the bark are nearer to the bark around
+///   its base than the stem's axis is. On synthetic
+///   occluded TLS scans (`silva eval --synthetic 20 --scan tls`) this took
+///   the median wood volume from 1.20 to 1.12 times the truth's, the
+///   poplars' from 1.30 to 1.12.
+///
+/// See [`section_radius`] for the radius of one section.
 fn measured_radii(
     skeleton: &Skeleton,
     points: &[Vec3],
@@ -307,6 +316,8 @@ fn measured_radii(
     let orders = skeleton.branch_orders();
     let mut samples = Vec::new();
     let mut owner = Vec::new();
+    // Branch internodes within reach of the stem's wood.
+    let mut near_stem = vec![false; skeleton.len()];
     for (p, c) in skeleton.internodes() {
         let (a, b) = (skeleton.position(p), skeleton.position(c));
         let around = if orders[c.index()] > 0 {
@@ -314,6 +325,7 @@ fn measured_radii(
         } else {
             Vec::new()
         };
+        near_stem[c.index()] = !around.is_empty();
         for q in axis_samples(a, b) {
             if !stem.holds(skeleton, &around, q) {
                 samples.push(q);
@@ -325,7 +337,12 @@ fn measured_radii(
     let index = PointIndex::new(&samples);
     for &q in points {
         if let Some(n) = index.nearest(q) {
-            let c = owner[n.index];
+            let mut c = owner[n.index];
+            if near_stem[c.index()]
+                && let Some(on_stem) = stem.on_bark(skeleton, q, n.distance_sq.sqrt())
+            {
+                c = on_stem;
+            }
             let p = skeleton.parent(c).unwrap_or(NodeId::ROOT);
             if let Some(d) = radial_offset(q, skeleton.position(p), skeleton.position(c)) {
                 found[c.index()].push(d);
@@ -364,7 +381,8 @@ fn axis_samples(a: Vec3, b: Vec3) -> impl Iterator<Item = Vec3> {
 /// --scan tls`), branches inside the trunk with 3 cm or more held three
 /// quarters of the reconstructed branch volume. The pipe model alone
 /// reads a poplar's upper trunk a third too thin (0.14 m where it is
-/// 0.2 m), hence the fitted radii.
+/// 0.2 m), hence the fitted radii. Points on its bark are the stem's too
+/// ([`StemWood::on_bark`]).
 struct StemWood {
     /// Axis samples of the stem's internodes.
     index: PointIndex,
@@ -420,6 +438,17 @@ impl StemWood {
         owners.sort_unstable();
         owners.dedup();
         owners
+    }
+
+    /// The stem internode of the stem sample nearest to `q`, when `q` lies
+    /// nearer to its bark (the cylinder's surface) than `branch_m`.
+    fn on_bark(&self, skeleton: &Skeleton, q: Vec3, branch_m: f32) -> Option<NodeId> {
+        let n = self.index.nearest(q)?;
+        let c = self.owner[n.index];
+        let p = skeleton.parent(c).unwrap_or(NodeId::ROOT);
+        let r = self.radius[p.index()].max(self.radius[c.index()]);
+        let d = point_segment_distance(q, skeleton.position(p), skeleton.position(c));
+        ((d - r).abs() < branch_m).then_some(c)
     }
 
     /// True when `q` lies inside the cylinder (the larger of its two radii)
@@ -1443,6 +1472,72 @@ mod tests {
         assert!(r < 0.015, "the twig measured {r} m");
         let r = measured[base.index()].expect("the stem measured");
         assert!((r - 0.2).abs() < 0.01, "the stem measured {r} m");
+    }
+
+    /// A 1 cm twig leaving a 20 cm trunk at breast height, nearly level:
+    /// its axis samples just outside the bark are nearer to the bark around
+    /// its base than the trunk's axis is, so by the nearest sample alone the
+    /// twig took a ring of bark and measured 12 cm. The bark's points go to
+    /// the stem whose surface they lie on (`StemWood::on_bark`).
+    #[test]
+    fn a_twig_leaving_its_stem_does_not_take_the_bark_around_its_base() {
+        let mut tree = Skeleton::new(Anchor::default(), 0.0);
+        let mut node = NodeId::ROOT;
+        for i in 1..=8 {
+            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.0);
+        }
+        let base = NodeId::from_index(4);
+        let first = tree.add_child(base, Vec3::new(0.5, 0.0, 2.1), 0.0);
+        let second = tree.add_child(first, Vec3::new(1.0, 0.0, 2.2), 0.0);
+        let mut points = Vec::new();
+        let ring = |centre: Vec3, u: Vec3, r: f32, n: usize, points: &mut Vec<Vec3>| {
+            let (e1, e2) = u.any_orthonormal_pair();
+            for k in 0..n {
+                let phi = k as f32 / n as f32 * std::f32::consts::TAU;
+                points.push(centre + (e1 * phi.cos() + e2 * phi.sin()) * r);
+            }
+        };
+        for i in 0..200 {
+            ring(
+                Vec3::new(0.0, 0.0, 0.02 * i as f32),
+                Vec3::Z,
+                0.2,
+                32,
+                &mut points,
+            );
+        }
+        let (a, b) = (Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.2));
+        // A sparse twig, as a scan sees one: 4 points every 5 cm.
+        for i in 0..20 {
+            let c = a.lerp(b, i as f32 / 20.0);
+            if c.truncate().length() > 0.21 {
+                ring(c, (b - a).normalize(), 0.01, 4, &mut points);
+            }
+        }
+        let cloud = PointCloud::from_points(Default::default(), points);
+        let params = Params::default();
+        let crown = Crown {
+            height_m: 4.0,
+            base_height_m: 1.5,
+            diameter_m: 2.0,
+            area_m2: 3.0,
+        };
+        let trunk = fit_trunk(&tree, &cloud.points, &crown, &params);
+        let tips = tips_above(&tree);
+        let stem = PipeLaw::through(tips[3], trunk.radius_m, params.min_radius_m);
+        let given = [0.0; 11];
+        let measured = measure_sections(
+            &mut tree,
+            &cloud.points,
+            (&tips, stem),
+            &given,
+            &trunk,
+            &params,
+        );
+        for twig in [first, second] {
+            let r = measured[twig.index()].expect("the twig measured");
+            assert!(r < 0.02, "the twig's internode {twig:?} measured {r} m");
+        }
     }
 
     /// A 1 cm twig measured right on a 30 cm trunk keeps its radius: it is
