@@ -1403,6 +1403,61 @@ mod tests {
         assert!((radii[2] - 0.05).abs() < 1e-6, "{radii:?}");
     }
 
+    /// `n` points on the circle of radius `r` about `centre` across `u`.
+    fn ring(centre: Vec3, u: Vec3, r: f32, n: usize, points: &mut Vec<Vec3>) {
+        let (e1, e2) = u.any_orthonormal_pair();
+        for k in 0..n {
+            let phi = k as f32 / n as f32 * std::f32::consts::TAU;
+            points.push(centre + (e1 * phi.cos() + e2 * phi.sin()) * r);
+        }
+    }
+
+    /// A 4 m upright stem in internodes of 0.5 m, without radii (as the
+    /// pipelines hand it over), and its bark: a 20 cm ring of 32 points
+    /// every 2 cm.
+    fn bare_stem() -> (Skeleton, Vec<Vec3>) {
+        let mut tree = Skeleton::new(Anchor::default(), 0.0);
+        let mut node = NodeId::ROOT;
+        for i in 1..=8 {
+            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.0);
+        }
+        let mut bark = Vec::new();
+        for i in 0..200 {
+            let centre = Vec3::new(0.0, 0.0, 0.02 * i as f32);
+            ring(centre, Vec3::Z, 0.2, 32, &mut bark);
+        }
+        (tree, bark)
+    }
+
+    /// The points of a 1 cm twig from `a` to `b` outside a 20 cm bark:
+    /// `per_ring` points on each of `rings` rings.
+    fn twig_outside(a: Vec3, b: Vec3, rings: usize, per_ring: usize, points: &mut Vec<Vec3>) {
+        for i in 0..rings {
+            let c = a.lerp(b, i as f32 / rings as f32);
+            if c.truncate().length() > 0.21 {
+                ring(c, (b - a).normalize(), 0.01, per_ring, points);
+            }
+        }
+    }
+
+    /// [`measure_sections`] on `tree` from radii 0, with the trunk fitted
+    /// to `points` and the stem's law through the node at 1.5 m.
+    fn measured_from_bare(tree: &mut Skeleton, points: &[Vec3]) -> Vec<Option<f32>> {
+        let crown = Crown {
+            height_m: 4.0,
+            base_height_m: 1.5,
+            diameter_m: 2.0,
+            area_m2: 3.0,
+        };
+        let params = Params::default();
+        let trunk = fit_trunk(tree, points, &crown, &params);
+        assert_eq!(trunk.method, DbhMethod::Fitted, "{}", trunk.reason);
+        let tips = tips_above(tree);
+        let stem = PipeLaw::through(tips[3], trunk.radius_m, params.min_radius_m);
+        let given = vec![0.0; tree.len()];
+        measure_sections(tree, points, (&tips, stem), &given, &trunk, &params)
+    }
+
     /// A 1 cm twig that starts on the axis of a 20 cm stem and runs up
     /// inside its wood for a metre before it leaves the bark (as a poplar's
     /// twigs do, and as `dense::lateral_base` starts laterals), with the
@@ -1410,59 +1465,14 @@ mod tests {
     /// around that part is not measured as the twig's.
     #[test]
     fn a_twig_inside_its_stem_does_not_take_the_stems_bark() {
-        let mut tree = Skeleton::new(Anchor::default(), 0.0);
-        let mut node = NodeId::ROOT;
-        for i in 1..=8 {
-            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.0);
-        }
+        let (mut tree, mut points) = bare_stem();
         let base = NodeId::from_index(2);
         let first = tree.add_child(base, Vec3::new(0.05, 0.0, 1.5), 0.0);
         let second = tree.add_child(first, Vec3::new(0.12, 0.0, 2.2), 0.0);
         let out = tree.add_child(second, Vec3::new(0.6, 0.0, 2.6), 0.0);
-        let mut points = Vec::new();
-        let ring = |centre: Vec3, u: Vec3, r: f32, n: usize, points: &mut Vec<Vec3>| {
-            let (e1, e2) = u.any_orthonormal_pair();
-            for k in 0..n {
-                let phi = k as f32 / n as f32 * std::f32::consts::TAU;
-                points.push(centre + (e1 * phi.cos() + e2 * phi.sin()) * r);
-            }
-        };
-        for i in 0..200 {
-            ring(
-                Vec3::new(0.0, 0.0, 0.02 * i as f32),
-                Vec3::Z,
-                0.2,
-                32,
-                &mut points,
-            );
-        }
         let (a, b) = (Vec3::new(0.12, 0.0, 2.2), Vec3::new(0.6, 0.0, 2.6));
-        for i in 0..50 {
-            let c = a.lerp(b, i as f32 / 50.0);
-            if c.truncate().length() > 0.21 {
-                ring(c, (b - a).normalize(), 0.01, 8, &mut points);
-            }
-        }
-        let cloud = PointCloud::from_points(Default::default(), points);
-        let crown = Crown {
-            height_m: 4.0,
-            base_height_m: 1.5,
-            diameter_m: 1.2,
-            area_m2: 1.0,
-        };
-        let params = Params::default();
-        let trunk = fit_trunk(&tree, &cloud.points, &crown, &params);
-        assert_eq!(trunk.method, DbhMethod::Fitted, "{}", trunk.reason);
-        let tips = tips_above(&tree);
-        let stem = PipeLaw::through(tips[2], trunk.radius_m, params.min_radius_m);
-        let measured = measure_sections(
-            &mut tree,
-            &cloud.points,
-            (&tips, stem),
-            &[0.0; 12],
-            &trunk,
-            &params,
-        );
+        twig_outside(a, b, 50, 8, &mut points);
+        let measured = measured_from_bare(&mut tree, &points);
         assert_eq!(
             measured[first.index()],
             None,
@@ -1481,59 +1491,14 @@ mod tests {
     /// the stem whose surface they lie on (`StemWood::on_bark`).
     #[test]
     fn a_twig_leaving_its_stem_does_not_take_the_bark_around_its_base() {
-        let mut tree = Skeleton::new(Anchor::default(), 0.0);
-        let mut node = NodeId::ROOT;
-        for i in 1..=8 {
-            node = tree.add_child(node, Vec3::new(0.0, 0.0, 0.5 * i as f32), 0.0);
-        }
+        let (mut tree, mut points) = bare_stem();
         let base = NodeId::from_index(4);
         let first = tree.add_child(base, Vec3::new(0.5, 0.0, 2.1), 0.0);
         let second = tree.add_child(first, Vec3::new(1.0, 0.0, 2.2), 0.0);
-        let mut points = Vec::new();
-        let ring = |centre: Vec3, u: Vec3, r: f32, n: usize, points: &mut Vec<Vec3>| {
-            let (e1, e2) = u.any_orthonormal_pair();
-            for k in 0..n {
-                let phi = k as f32 / n as f32 * std::f32::consts::TAU;
-                points.push(centre + (e1 * phi.cos() + e2 * phi.sin()) * r);
-            }
-        };
-        for i in 0..200 {
-            ring(
-                Vec3::new(0.0, 0.0, 0.02 * i as f32),
-                Vec3::Z,
-                0.2,
-                32,
-                &mut points,
-            );
-        }
-        let (a, b) = (Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.2));
         // A sparse twig, as a scan sees one: 4 points every 5 cm.
-        for i in 0..20 {
-            let c = a.lerp(b, i as f32 / 20.0);
-            if c.truncate().length() > 0.21 {
-                ring(c, (b - a).normalize(), 0.01, 4, &mut points);
-            }
-        }
-        let cloud = PointCloud::from_points(Default::default(), points);
-        let params = Params::default();
-        let crown = Crown {
-            height_m: 4.0,
-            base_height_m: 1.5,
-            diameter_m: 2.0,
-            area_m2: 3.0,
-        };
-        let trunk = fit_trunk(&tree, &cloud.points, &crown, &params);
-        let tips = tips_above(&tree);
-        let stem = PipeLaw::through(tips[3], trunk.radius_m, params.min_radius_m);
-        let given = [0.0; 11];
-        let measured = measure_sections(
-            &mut tree,
-            &cloud.points,
-            (&tips, stem),
-            &given,
-            &trunk,
-            &params,
-        );
+        let (a, b) = (Vec3::new(0.0, 0.0, 2.0), Vec3::new(1.0, 0.0, 2.2));
+        twig_outside(a, b, 20, 4, &mut points);
+        let measured = measured_from_bare(&mut tree, &points);
         for twig in [first, second] {
             let r = measured[twig.index()].expect("the twig measured");
             assert!(r < 0.02, "the twig's internode {twig:?} measured {r} m");
