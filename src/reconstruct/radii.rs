@@ -156,7 +156,9 @@ pub struct Circle {
 /// Fits the trunk, then sets every node's radius (pipe model, tapered,
 /// never growing towards the tips). `tree` holds the tree's points without
 /// ground; it is rebased to the skeleton's anchor if needed. The radii the
-/// skeleton comes with are read only as the stem's wood ([`StemWood`]).
+/// skeleton comes with are the pipeline's fitted ones (0: none); with
+/// measured radii they are the stem's wood ([`StemWood`]) and their nodes'
+/// measurements ([`measure_sections`]).
 pub fn assign_radii(
     skeleton: &mut Skeleton,
     tree: &PointCloud,
@@ -261,8 +263,13 @@ pub fn estimate_radii(skeleton: &mut Skeleton, params: &Params) -> TrunkFit {
 /// [`measured_radii`] around the stem's wood ([`StemWood`]): the pipe
 /// model's radii with the stem's law through the DBH (`stem`, with the tips
 /// above each node), or those `given` by the pipeline where larger. The
-/// scanner's noise is the trunk fit's RMS. Leaves the provisional radii on
-/// the skeleton.
+/// scanner's noise is the trunk fit's RMS. Where the pipeline `given` a
+/// radius (a circle fitted to a tall slice of a dense scan's trunk, see
+/// `dense::stem_axis`), that is the node's measurement: the sections
+/// around a stem hold the bases of its branches, and on clean synthetic
+/// pines, whose whorls ring the stem, they read the stem in the crown
+/// 15–25 % thick where the tracked circles are within 2 %. Leaves the
+/// provisional radii on the skeleton.
 fn measure_sections(
     skeleton: &mut Skeleton,
     points: &[Vec3],
@@ -287,7 +294,13 @@ fn measure_sections(
         DbhMethod::Estimated => 0.0,
     };
     let wood = StemWood::of(skeleton, given);
-    measured_radii(skeleton, points, params.min_section_points, noise, &wood)
+    let mut measured = measured_radii(skeleton, points, params.min_section_points, noise, &wood);
+    for (m, &fitted) in measured.iter_mut().zip(given) {
+        if fitted > 0.0 {
+            *m = Some(fitted);
+        }
+    }
+    measured
 }
 
 /// Per node, the radius of its incoming internode measured from the points
@@ -1443,6 +1456,12 @@ mod tests {
     /// [`measure_sections`] on `tree` from radii 0, with the trunk fitted
     /// to `points` and the stem's law through the node at 1.5 m.
     fn measured_from_bare(tree: &mut Skeleton, points: &[Vec3]) -> Vec<Option<f32>> {
+        let given = vec![0.0; tree.len()];
+        measured_given(tree, points, &given)
+    }
+
+    /// [`measured_from_bare`] with the radii `given` by the pipeline.
+    fn measured_given(tree: &mut Skeleton, points: &[Vec3], given: &[f32]) -> Vec<Option<f32>> {
         let crown = Crown {
             height_m: 4.0,
             base_height_m: 1.5,
@@ -1454,8 +1473,38 @@ mod tests {
         assert_eq!(trunk.method, DbhMethod::Fitted, "{}", trunk.reason);
         let tips = tips_above(tree);
         let stem = PipeLaw::through(tips[3], trunk.radius_m, params.min_radius_m);
-        let given = vec![0.0; tree.len()];
-        measure_sections(tree, points, (&tips, stem), &given, &trunk, &params)
+        measure_sections(tree, points, (&tips, stem), given, &trunk, &params)
+    }
+
+    /// A whorl of stubs rings the stem from 2.0 to 2.5 m: their points are
+    /// the stem section's, whose spread reads 25 cm on a 20 cm stem. Where
+    /// the pipeline fitted a circle to the stem's slice (on the nodes it
+    /// tracked, as `dense::stem_axis` hands them over), that circle's radius
+    /// is the measurement; elsewhere the section's.
+    #[test]
+    fn a_tracked_stem_is_measured_by_its_fitted_circle() {
+        let (mut tree, mut points) = bare_stem();
+        for k in 0..8 {
+            let (sin, cos) = (k as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
+            let out = Vec3::new(cos, sin, 0.0);
+            for i in 0..200 {
+                let z = 2.0 + 0.5 * (i % 20) as f32 / 20.0;
+                let r = 0.2 + 0.25 * (i / 20) as f32 / 10.0;
+                points.push(out * r + Vec3::Z * z);
+            }
+        }
+        let whorl = NodeId::from_index(5);
+        let untracked = measured_from_bare(&mut tree.clone(), &points);
+        let spread = untracked[whorl.index()].expect("the whorl measured");
+        assert!(spread > 0.22, "the whorl's section measured {spread} m");
+        let mut given = vec![0.0; tree.len()];
+        given[whorl.index()] = 0.2;
+        let tracked = measured_given(&mut tree, &points, &given);
+        assert_eq!(tracked[whorl.index()], Some(0.2));
+        assert_eq!(
+            tracked[6], untracked[6],
+            "an untracked node keeps its section"
+        );
     }
 
     /// A 1 cm twig that starts on the axis of a 20 cm stem and runs up

