@@ -77,6 +77,11 @@ struct Summary {
     median_abs_height_error_m: Option<f64>,
     /// Median of the synthetic trees' reconstructed over true wood volume.
     median_volume_ratio: Option<f64>,
+    /// Median of the synthetic trees' reconstructed over true total branch
+    /// length.
+    median_length_ratio: Option<f64>,
+    /// Median of the synthetic trees' reconstructed over true branch count.
+    median_branch_count_ratio: Option<f64>,
     /// Synthetic trees meeting each of issue 3's per-tree targets for the
     /// scan (empty without synthetic trees).
     targets: Vec<Tally>,
@@ -218,6 +223,10 @@ fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {
             r.truth.as_ref().map(|t| f64::from(t.height_error_m.abs()))
         }),
         median_volume_ratio: of(|r| r.truth.as_ref().map(|t| f64::from(t.volume_ratio))),
+        median_length_ratio: of(|r| r.truth.as_ref().map(|t| f64::from(t.length_ratio))),
+        median_branch_count_ratio: of(|r| {
+            r.truth.as_ref().map(|t| f64::from(t.branch_count_ratio))
+        }),
         targets: targets
             .into_iter()
             .map(|t| Tally {
@@ -324,6 +333,18 @@ fn columns() -> Vec<Column<TreeRow>> {
         Column {
             header: "vol_ratio",
             cell: |r| r.truth.as_ref().map(|t| format!("{:.2}", t.volume_ratio)),
+        },
+        Column {
+            header: "len_ratio",
+            cell: |r| r.truth.as_ref().map(|t| format!("{:.2}", t.length_ratio)),
+        },
+        Column {
+            header: "br_ratio",
+            cell: |r| {
+                r.truth
+                    .as_ref()
+                    .map(|t| format!("{:.2}", t.branch_count_ratio))
+            },
         },
         Column {
             header: "base_off",

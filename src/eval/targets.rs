@@ -125,6 +125,8 @@ mod tests {
             trunk_base_offset_m: base_m,
             true_volume_m3: 1.0,
             volume_ratio: 1.0,
+            length_ratio: 1.0,
+            branch_count_ratio: 1.0,
         }
     }
 

@@ -348,7 +348,7 @@ pub fn wood_volume_m3(skeleton: &Skeleton) -> f32 {
 
 /// Branches per order: a branch starts at the root or at a lateral child and
 /// follows main extensions ([`Skeleton::branch_orders`]).
-fn order_stats(skeleton: &Skeleton) -> Vec<OrderStats> {
+pub fn order_stats(skeleton: &Skeleton) -> Vec<OrderStats> {
     let orders = skeleton.branch_orders();
     let top = orders.iter().copied().max().unwrap_or(0) as usize;
     let mut stats: Vec<OrderStats> = (0..=top as u32)
