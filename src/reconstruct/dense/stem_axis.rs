@@ -91,6 +91,18 @@ const MIN_SHIFT_M: f32 = 0.02;
 /// metres.
 const MIN_TRAIL_M: f32 = 0.3;
 
+/// How [`Slices::fit`] finds a slice's circle.
+#[derive(Debug, Clone, Copy)]
+enum Start {
+    /// Searched for ([`robust_circle`], a RANSAC), as for the seed: at
+    /// least as large as the section's `spread` (an arc's centroid lies
+    /// inside its circle).
+    Search { spread: f32 },
+    /// Refined ([`circle_from`]) from the circle of this radius about the
+    /// predicted axis, as along the tracked trunk.
+    From { radius: f32 },
+}
+
 /// One plausible circle fit of a slice.
 #[derive(Debug, Clone, Copy)]
 struct SliceFit {
@@ -161,7 +173,10 @@ impl Slices<'_> {
     fn at_node(&self, k: usize) -> Option<SliceFit> {
         let at = self.skeleton.position(self.chain[k]);
         let dir = local_direction(self.skeleton, self.chain, k, self.rule.axis_window_m)?;
-        self.fit(at, dir, self.rule.reach_m, self.spread(k), None)
+        let search = Start::Search {
+            spread: self.spread(k),
+        };
+        self.fit(at, dir, self.rule.reach_m, search)
             .filter(|f| f.centre.distance(at) <= f.radius)
     }
 
@@ -191,11 +206,12 @@ impl Slices<'_> {
             let found = self.predicted(&trail, k).and_then(|(guess, dir)| {
                 let tolerance = (self.rule.max_change * last).max(MIN_SHIFT_M);
                 let reach = self.rule.reach_m.min(2.0 * last + MIN_SHIFT_M);
-                self.fit(guess, dir, reach, 0.0, Some(last)).filter(|f| {
-                    (f.radius - last).abs() <= self.rule.max_change * last
-                        && f.centre.distance(guess) <= tolerance
-                        && f.centre.distance(at) <= 2.0 * f.radius
-                })
+                self.fit(guess, dir, reach, Start::From { radius: last })
+                    .filter(|f| {
+                        (f.radius - last).abs() <= self.rule.max_change * last
+                            && f.centre.distance(guess) <= tolerance
+                            && f.centre.distance(at) <= 2.0 * f.radius
+                    })
             });
             match found {
                 Some(f) => {
@@ -238,21 +254,11 @@ impl Slices<'_> {
     }
 
     /// The circle fitted to the points within [`StemRule::half_window_m`]
-    /// of `centre` along `dir` and within `reach` of it across, if it is
-    /// plausible: enough inliers over a third of the girth, tight, at least
-    /// [`StemRule::min_radius_m`] and `spread` (an arc's centroid lies
-    /// inside its circle), with `centre` inside it. With a `predicted`
-    /// radius the fit is refined from the circle of that radius about
-    /// `centre` ([`circle_from`]); without, it is searched for
-    /// ([`robust_circle`], a RANSAC).
-    fn fit(
-        &self,
-        centre: Vec3,
-        dir: Vec3,
-        reach: f32,
-        spread: f32,
-        predicted: Option<f32>,
-    ) -> Option<SliceFit> {
+    /// of `centre` along `dir` and within `reach` of it across, found as
+    /// `start` says, if it is plausible: enough inliers over a third of the
+    /// girth, tight, at least [`StemRule::min_radius_m`] (and the section's
+    /// spread, for a search), with `centre` inside it.
+    fn fit(&self, centre: Vec3, dir: Vec3, reach: f32, start: Start) -> Option<SliceFit> {
         let rule = self.rule;
         let (e1, e2) = dir.any_orthonormal_pair();
         let flat: Vec<Vec2> = self
@@ -267,16 +273,20 @@ impl Slices<'_> {
         if flat.len() < rule.min_points {
             return None;
         }
-        let (circle, inliers) = match predicted {
-            Some(radius) => {
-                let start = Circle {
+        let (circle, inliers, spread) = match start {
+            Start::From { radius } => {
+                let guess = Circle {
                     centre: Vec2::ZERO,
                     radius,
                 };
-                circle_from(&flat, start, reach)
+                let (circle, inliers) = circle_from(&flat, guess, reach)?;
+                (circle, inliers, 0.0)
             }
-            None => robust_circle(&flat, reach),
-        }?;
+            Start::Search { spread } => {
+                let (circle, inliers) = robust_circle(&flat, reach)?;
+                (circle, inliers, spread)
+            }
+        };
         let plausible = inliers.len() >= rule.min_points
             && circle.radius >= spread.max(rule.min_radius_m)
             && circle.centre.length() <= circle.radius
