@@ -972,3 +972,36 @@ fn a_poplars_trunk_is_followed_through_its_crown() {
         "wood volume {ratio:.2} of the truth's"
     );
 }
+
+/// Occluded terrestrial scans (`silva eval --synthetic 8 --scan tls`, the
+/// eval's species and seeds): the crown hides the twigs at its top, and the
+/// highest point lay 0.11–0.46 m below the true top (median 0.18 m). With
+/// the expected gap to the apex added, as for airborne scans, the height
+/// errors centre on 0 (median −0.07 m when this test was written) and the
+/// reconstruction says so in a note.
+#[test]
+fn the_height_reaches_past_the_hidden_top_of_an_occluded_crown() {
+    use silva::synth::Species;
+    let species = [Species::Oak, Species::Birch, Species::Poplar, Species::Pine];
+    let mut errors: Vec<f32> = (1..=8u64)
+        .map(|seed| {
+            let (truth, cloud) = default_scan(species[(seed as usize - 1) % 4], seed);
+            let tree = reconstruct(&cloud, &dense()).expect("reconstructs");
+            assert!(
+                tree.notes
+                    .iter()
+                    .any(|n| n.contains("expected gap to the apex")),
+                "{:?}",
+                tree.notes
+            );
+            tree.metrics.height_m - silva::eval::run::true_height_m(&truth)
+        })
+        .collect();
+    errors.sort_by(f32::total_cmp);
+    let median = 0.5 * (errors[3] + errors[4]);
+    assert!(
+        median.abs() < 0.1,
+        "median height error {median}: {errors:?}"
+    );
+    assert!(errors.iter().all(|e| e.abs() < 0.45), "{errors:?}");
+}

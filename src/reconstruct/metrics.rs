@@ -169,10 +169,12 @@ impl ApexGap {
     }
 }
 
-/// Expected height of the crown's apex above the highest return of a sparse
-/// (airborne) scan `points` (tree points, ground removed): the posterior
-/// mean of the gap given the depths of the highest returns, under a model
-/// of the crown's top ([`CrownTop`]).
+/// Expected height of the crown's apex above the highest return of a scan
+/// `points` (tree points, ground removed): the posterior mean of the gap
+/// given the depths of the highest returns, under a model of the crown's
+/// top ([`CrownTop`]). Made for sparse airborne scans; a terrestrial scan's
+/// top is as sparse, its twigs hidden by the crown below (see
+/// `reconstruct::measure_crown` for what it does there).
 ///
 /// A pulse returns from inside the crown's outer shell of fine twigs or
 /// leaves, which it enters and may pass through, so returns scatter through
@@ -284,9 +286,9 @@ pub struct OrderStats {
 /// Metrics of one reconstructed tree.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TreeMetrics {
-    /// Tree height (highest point above the trunk base), metres. Airborne
-    /// reconstructions add the expected gap between the highest return and
-    /// the apex ([`apex_gap`]), and say so in their notes.
+    /// Tree height (highest point above the trunk base), metres, plus the
+    /// expected gap between the highest return and the apex ([`apex_gap`]),
+    /// which the reconstruction's notes state.
     pub height_m: f32,
     /// Diameter at breast height (1.3 m), metres.
     pub dbh_m: f32,

@@ -226,7 +226,7 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     let mut notes: Vec<String> = noise_notes.into_iter().chain(survey_note).collect();
     notes.extend(pipeline_notes);
     interrupt.check("crown measurement")?;
-    let crown = measure_crown(&skeleton, &tree_cloud, mode, &mut notes);
+    let crown = measure_crown(&skeleton, &tree_cloud, &mut notes);
     interrupt.check("radius assignment")?;
     let trunk = radii::assign_radii(
         &mut skeleton,
@@ -307,18 +307,27 @@ fn radius_params(radii: &radii::Params, mode: Mode) -> radii::Params {
     }
 }
 
-/// The crown's measures; an airborne tree's height is raised by the
-/// expected gap between its highest return and its apex, with a note.
+/// The crown's measures; the tree's height is raised by the expected gap
+/// between its highest return and its apex ([`metrics::apex_gap`]), with a
+/// note when there is one.
+///
+/// A sparse scan from above rarely hits the apex itself, and a scan from
+/// the ground hardly sees the twigs at the top of the crown, which the
+/// crown below hides: on 60 occluded synthetic TLS scans (`silva eval
+/// --synthetic 60 --scan tls`) the highest point lay a median 0.156 m below
+/// the true top (all four species 0.13–0.20 m), and with the gap added the
+/// height is a median 0.042 m low, |error| a median 0.081 m (within 0.3 m:
+/// 52 → 57 of 60). On clean scans (`--density 1000 --no-occlusion`, 20
+/// trees) the error goes from −0.025 to +0.030 m in the median. The
+/// estimate is model-based and its scatter is stated in the note.
 fn measure_crown(
     skeleton: &Skeleton,
     tree: &PointCloud,
-    mode: Mode,
     notes: &mut Vec<String>,
 ) -> metrics::Crown {
     let mut crown = metrics::Crown::measure(skeleton, tree);
-    if mode == Mode::Airborne {
-        // A sparse scan from above rarely hits the apex itself.
-        let apex = metrics::apex_gap(&tree.points);
+    let apex = metrics::apex_gap(&tree.points);
+    if apex.gap_m > 0.0 {
         notes.push(format!(
             "height: highest return {:.2} m plus {:.2} m expected gap to the apex of a {} top \
              (± {:.2} m, one standard deviation: the gap of one tree scatters about its \

@@ -157,8 +157,8 @@ pub struct Circle {
 /// never growing towards the tips). `tree` holds the tree's points without
 /// ground; it is rebased to the skeleton's anchor if needed. The radii the
 /// skeleton comes with are the pipeline's fitted ones (0: none); with
-/// measured radii they are the stem's wood ([`StemWood`]) and their nodes'
-/// measurements ([`measure_sections`]).
+/// measured radii they are the stem's wood (`StemWood`) and their nodes'
+/// measurements (`measure_sections`).
 pub fn assign_radii(
     skeleton: &mut Skeleton,
     tree: &PointCloud,
