@@ -50,7 +50,9 @@
 //!    the scanner;
 //! 8. `tips`: each tip moved from its last section's centroid to the
 //!    scan's last point ahead of it, and each twig on by the median gap
-//!    between a twig's last scanned point and its end.
+//!    between a twig's last scanned point and its end;
+//! 9. the laterals of the tracked stem's nodes that never leave its fitted
+//!    bark dropped (`simplify::bark_spurs`).
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines. The skeleton's radii on the way are the sections'
@@ -178,7 +180,8 @@ pub struct Params {
     /// Laterals of forks whose cross-section spread reaches this many bin
     /// widths (a thick stem) are spurs out to a piece of the stem's own bark
     /// when they never get farther from the fork than that spread plus
-    /// [`Params::spur_reach_bins`] bin widths (infinite: off).
+    /// [`Params::spur_reach_bins`] bin widths (infinite: off, and with it
+    /// the same rule on the tracked stem's fitted circles, step 9).
     ///
     /// Clean synthetic TLS scans (`silva eval --synthetic 8 --scan tls
     /// --density 1000 --no-occlusion`): median precision 97.7 → 99.0 %,
@@ -444,6 +447,10 @@ pub fn reconstruct(
         tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
     }
     keep_fitted_radii(&mut skeleton, &tracked);
+    if params.spur_spread_bins.is_finite() {
+        let keep = simplify::bark_spurs(&skeleton, params.spur_reach_bins * graph.bin_m);
+        skeleton = skeleton.retain(&keep);
+    }
     Ok(DenseOutput {
         skeleton: skeleton.canonical(),
         cloud: PointCloud::from_points(origin, tree_points),
