@@ -447,12 +447,8 @@ pub fn reconstruct(
         tips::place_tips(&mut skeleton, &tree_points, &index, &rule);
     }
     keep_fitted_radii(&mut skeleton, &tracked);
-    if params.spur_spread_bins.is_finite() {
-        let keep = simplify::bark_spurs(&skeleton, params.spur_reach_bins * graph.bin_m);
-        skeleton = skeleton.retain(&keep);
-    }
     Ok(DenseOutput {
-        skeleton: skeleton.canonical(),
+        skeleton: without_bark_spurs(&skeleton, graph.bin_m, params),
         cloud: PointCloud::from_points(origin, tree_points),
         notes,
         bin_width_m: graph.bin_m,
@@ -740,6 +736,18 @@ fn keep_fitted_radii(skeleton: &mut Skeleton, tracked: &[NodeId]) {
             skeleton.set_radius(id, 0.0);
         }
     }
+}
+
+/// Step 9: the skeleton without the tracked stem's spurs to its bark
+/// (`simplify::bark_spurs`), unless the spur rule is off, in canonical
+/// order either way (`Skeleton::retain` returns it so).
+fn without_bark_spurs(skeleton: &Skeleton, bin_m: f32, params: &Params) -> Skeleton {
+    let keep = if params.spur_spread_bins.is_finite() {
+        simplify::bark_spurs(skeleton, params.spur_reach_bins * bin_m)
+    } else {
+        vec![true; skeleton.len()]
+    };
+    skeleton.retain(&keep)
 }
 
 /// Removes near-duplicates (points within one `duplicate_m` voxel), then
