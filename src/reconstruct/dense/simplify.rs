@@ -87,12 +87,17 @@ pub(super) struct Pruning {
     /// …that never get farther from the fork than its spread plus this, in
     /// metres.
     pub(super) spur_reach_m: f32,
+    /// Laterals that never get farther than this from their fork's main
+    /// extension are strands of it (0: off; see [`alongside_main`]), in
+    /// metres.
+    pub(super) strand_reach_m: f32,
 }
 
 /// Marks the lateral subtrees that are noise (`false`): shorter than
 /// `min_branch_m` (including the internode into them), never leaving the
-/// parent stem (see [`inside_stem`]), or spurs of a thick stem (see
-/// [`within_reach`]). The heaviest child of each fork always stays, so
+/// parent stem (see [`inside_stem`]), spurs of a thick stem (see
+/// [`within_reach`]), or strands beside the fork's main extension (see
+/// [`alongside_main`]). The heaviest child of each fork always stays, so
 /// branches keep their full length. `Skeleton::retain` applies the mask.
 pub(super) fn noise_branches(skeleton: &Skeleton, rule: &Pruning) -> Vec<bool> {
     let sub = skeleton.subtree_lengths();
@@ -109,19 +114,25 @@ pub(super) fn noise_branches(skeleton: &Skeleton, rule: &Pruning) -> Vec<bool> {
         if kids.len() < 2 {
             continue;
         }
-        let heaviest = kids
-            .iter()
-            .copied()
-            .max_by(|&a, &b| weight(a).total_cmp(&weight(b)));
-        let Some(main) = heaviest else { continue };
+        let Some(main) = heaviest_child(skeleton, v, &sub) else {
+            continue;
+        };
         let spread = skeleton.radius(v);
         let reach_m = (spread >= rule.spur_spread_m).then_some(spread + rule.spur_reach_m);
+        // Built once per fork, and only when a lateral gets this far.
+        let mut extension = None;
         for &c in kids {
-            if c != main
-                && (weight(c) < rule.min_branch_m
-                    || inside_stem(skeleton, v, main, c, rule.stem_spreads)
-                    || reach_m.is_some_and(|r| within_reach(skeleton, v, c, r)))
-            {
+            if c == main {
+                continue;
+            }
+            let noise = weight(c) < rule.min_branch_m
+                || inside_stem(skeleton, v, main, c, rule.stem_spreads)
+                || reach_m.is_some_and(|r| within_reach(skeleton, v, c, r))
+                || (rule.strand_reach_m > 0.0 && {
+                    let path = extension.get_or_insert_with(|| main_extension(skeleton, v, &sub));
+                    alongside_main(skeleton, path, c, rule.strand_reach_m)
+                });
+            if noise {
                 keep[c.index()] = false;
             }
         }
@@ -172,6 +183,44 @@ pub(super) fn bark_spurs(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
         }
     }
     keep
+}
+
+/// The positions along the main extension from `fork`: the fork, then each
+/// node's heaviest child (by `sub`, the subtree lengths) up to a tip.
+fn main_extension(skeleton: &Skeleton, fork: NodeId, sub: &[f32]) -> Vec<Vec3> {
+    let mut path = vec![skeleton.position(fork)];
+    let mut at = fork;
+    while let Some(next) = heaviest_child(skeleton, at, sub) {
+        path.push(skeleton.position(next));
+        at = next;
+    }
+    path
+}
+
+/// The child of `v` with the most length behind it (its subtree's, by
+/// `sub`, and the internode into it), if any.
+fn heaviest_child(skeleton: &Skeleton, v: NodeId, sub: &[f32]) -> Option<NodeId> {
+    let weight = |c: NodeId| sub[c.index()] + skeleton.internode_length(c);
+    skeleton
+        .children(v)
+        .iter()
+        .copied()
+        .max_by(|&a, &b| weight(a).total_cmp(&weight(b)))
+}
+
+/// True when every node of the lateral subtree at `lateral` lies within
+/// `reach_m` of the polyline `extension` (the fork's main extension): a
+/// strand that runs along the branch it leaves. On a thin, sparsely
+/// sampled branch a bin holds a point or two per side, the points of one
+/// side are not always linked to the other's, and the sides become two
+/// chains a branch's width apart. The heavier one is the branch; the other
+/// adds its length and a branch to the tree's totals.
+fn alongside_main(skeleton: &Skeleton, extension: &[Vec3], lateral: NodeId, reach_m: f32) -> bool {
+    all_in_subtree(skeleton, lateral, |p| {
+        extension
+            .windows(2)
+            .any(|w| point_segment_distance(p, w[0], w[1]) <= reach_m)
+    })
 }
 
 /// True when every node of the subtree at `top` has a position that
@@ -532,6 +581,7 @@ mod tests {
             stem_spreads: 1.5,
             spur_spread_m: f32::INFINITY,
             spur_reach_m: 0.0,
+            strand_reach_m: 0.0,
         };
         let pruned = s.retain(&noise_branches(&s, &rule));
         assert_eq!(pruned.len(), 4);
@@ -541,6 +591,54 @@ mod tests {
             straight.position(NodeId::from_index(1)),
             Vec3::new(0.0, 0.0, 3.0)
         );
+    }
+
+    /// A thin branch along x with a strand 1.5 cm beside it (the other side
+    /// of the branch, 20 cm long, so the length rule keeps it) and a twig
+    /// that leaves it at 40°: the strand rule drops only the strand.
+    #[test]
+    fn a_strand_beside_its_branch_goes_and_a_twig_stays() {
+        let mut nodes = vec![node([0.0, 0.0, 0.0], None), node([0.0, 0.0, 1.0], Some(0))];
+        let chain = |nodes: &mut Vec<Node>, step: Vec3, offset: Vec3, count: usize| {
+            let mut parent = 1;
+            for i in 1..=count {
+                let p = Vec3::new(0.0, 0.0, 1.0) + offset + step * i as f32;
+                nodes.push(node(p.to_array(), Some(parent)));
+                parent = nodes.len() - 1;
+            }
+        };
+        let along = Vec3::new(0.05, 0.0, 0.0);
+        chain(&mut nodes, along, Vec3::ZERO, 8); // the branch, 0.4 m
+        chain(&mut nodes, along, Vec3::new(0.0, 0.015, 0.0), 4); // the strand
+        let twig = Vec3::new(0.04, 0.034, 0.0); // 40° off, 5 cm steps
+        chain(&mut nodes, twig, Vec3::ZERO, 4);
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let mut rule = Pruning {
+            min_branch_m: 0.09,
+            stem_spreads: 0.0,
+            spur_spread_m: f32::INFINITY,
+            spur_reach_m: 0.0,
+            strand_reach_m: 0.0,
+        };
+        let tips = |rule: &Pruning| {
+            let kept = s.retain(&noise_branches(&s, rule));
+            let mut tips: Vec<[i32; 2]> = kept
+                .ids()
+                .filter(|&id| kept.is_tip(id))
+                .map(|id| {
+                    (kept.position(id) * 1000.0)
+                        .round()
+                        .truncate()
+                        .as_ivec2()
+                        .to_array()
+                })
+                .collect();
+            tips.sort();
+            tips
+        };
+        assert_eq!(tips(&rule), vec![[160, 136], [200, 15], [400, 0]]);
+        rule.strand_reach_m = 0.03;
+        assert_eq!(tips(&rule), vec![[160, 136], [400, 0]]);
     }
 
     /// A 0.3 m-radius stem (spread 0.3 at the fork) with a spur from its
@@ -565,6 +663,7 @@ mod tests {
             stem_spreads: 0.0,
             spur_spread_m: 0.12,
             spur_reach_m: 0.045,
+            strand_reach_m: 0.0,
         };
         let tips = |rule: &Pruning| {
             let kept = s.retain(&noise_branches(&s, rule));
