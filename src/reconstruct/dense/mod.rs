@@ -32,7 +32,7 @@
 //! 4. `simplify`: near-duplicate children merged, noisy branches dropped
 //!    (shorter than a few bins by subtree length; on thick stems, spurs
 //!    from the axis out to a piece of the stem's own bark; strands that
-//!    run beside their branch within a bin of its main extension; or, when
+//!    run within a bin of a heavier branch from the same fork; or, when
 //!    enabled, bark patches that never leave their stem), detours of a
 //!    thick stem's chain through a piece of its bark dropped, thick stems
 //!    smoothed (and, when enabled, thin chains with Taubin's λ|μ filter
@@ -191,22 +191,23 @@ pub struct Params {
     pub spur_spread_bins: f32,
     /// See [`Params::spur_spread_bins`].
     pub spur_reach_bins: f32,
-    /// Laterals that never get farther than this many bin widths from the
-    /// main extension of the fork they leave are strands of that branch and
-    /// are dropped (0: off). On a thin twig a bin holds a point or two per
-    /// side, the sides are not always linked, and they become two chains a
-    /// twig's width apart: one branch counted twice, with twice its length.
+    /// Laterals that never get farther than this many bin widths from a
+    /// heavier branch of the fork they leave (its main extension, or a
+    /// heavier lateral) are strands of that branch and are dropped (0:
+    /// off). On a thin twig a bin holds a point or two per side, the sides
+    /// are not always linked, and they become two chains a twig's width
+    /// apart: one branch counted twice, with twice its length.
     ///
     /// Synthetic TLS scans (`silva eval --synthetic 20 --scan tls`), 0 → 1:
-    /// median branch length / true 1.42 → 1.27, branch count / true 3.32 →
-    /// 2.50, recall 0.8527 → 0.8515; precision 0.9268 → 0.9150, because the
+    /// median branch length / true 1.42 → 1.23, branch count / true 3.32 →
+    /// 2.39, recall 0.8527 → 0.8512; precision 0.9268 → 0.9132, because the
     /// length dropped lay within the tolerance (the length farther than
     /// 10 cm from the truth is per tree 0.95–1.00 times what it was). Clean
-    /// (`--density 1000 --no-occlusion`): length 1.49 → 1.14, count 4.61 →
-    /// 2.10, precision 0.9960 → 0.9950, 15 of 20 trees meeting recall and
+    /// (`--density 1000 --no-occlusion`): length 1.49 → 1.11, count 4.61 →
+    /// 1.96, precision 0.9960 → 0.9949, 15 of 20 trees meeting recall and
     /// precision ≥ 0.99 as before. tree1 within 2 cm 83.9 → 83.4 %, tree13
-    /// 70.4 → 70.1 %. At 2 bin widths the length falls to 1.15 but tree13
-    /// loses 4 points within 2 cm.
+    /// 70.4 → 69.8 %. At 2 bin widths (main extension only) the length
+    /// falls to 1.15 but tree13 loses 4 points within 2 cm.
     pub strand_reach_bins: f32,
     /// A short run of sections (at most [`Params::detour_max_nodes`])
     /// between two thick stem rings (spread of at least

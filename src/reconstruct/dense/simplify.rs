@@ -87,17 +87,16 @@ pub(super) struct Pruning {
     /// …that never get farther from the fork than its spread plus this, in
     /// metres.
     pub(super) spur_reach_m: f32,
-    /// Laterals that never get farther than this from their fork's main
-    /// extension are strands of it (0: off; see [`alongside_main`]), in
-    /// metres.
+    /// Laterals that never get farther than this from a heavier branch of
+    /// their fork are strands of it (0: off; see [`alongside`]), in metres.
     pub(super) strand_reach_m: f32,
 }
 
 /// Marks the lateral subtrees that are noise (`false`): shorter than
 /// `min_branch_m` (including the internode into them), never leaving the
 /// parent stem (see [`inside_stem`]), spurs of a thick stem (see
-/// [`within_reach`]), or strands beside the fork's main extension (see
-/// [`alongside_main`]). The heaviest child of each fork always stays, so
+/// [`within_reach`]), or strands beside a heavier branch from the same fork
+/// (see [`alongside`]). The heaviest child of each fork always stays, so
 /// branches keep their full length. `Skeleton::retain` applies the mask.
 pub(super) fn noise_branches(skeleton: &Skeleton, rule: &Pruning) -> Vec<bool> {
     let sub = skeleton.subtree_lengths();
@@ -114,26 +113,32 @@ pub(super) fn noise_branches(skeleton: &Skeleton, rule: &Pruning) -> Vec<bool> {
         if kids.len() < 2 {
             continue;
         }
-        let Some(main) = heaviest_child(skeleton, v, &sub) else {
-            continue;
-        };
+        // Heaviest first: the main extension, then the laterals, each
+        // tested against the heavier branches kept before it.
+        let mut by_weight = kids.to_vec();
+        by_weight.sort_by(|&a, &b| weight(b).total_cmp(&weight(a)));
+        let main = by_weight[0];
         let spread = skeleton.radius(v);
         let reach_m = (spread >= rule.spur_spread_m).then_some(spread + rule.spur_reach_m);
-        // Built once per fork, and only when a lateral gets this far.
-        let mut extension = None;
-        for &c in kids {
-            if c == main {
-                continue;
-            }
+        // The extensions through the heavier branches kept so far, built
+        // only when the strand rule gets to them.
+        let mut heavier: Vec<Vec<Vec3>> = Vec::new();
+        for (rank, &c) in by_weight.iter().enumerate().skip(1) {
             let noise = weight(c) < rule.min_branch_m
                 || inside_stem(skeleton, v, main, c, rule.stem_spreads)
                 || reach_m.is_some_and(|r| within_reach(skeleton, v, c, r))
                 || (rule.strand_reach_m > 0.0 && {
-                    let path = extension.get_or_insert_with(|| main_extension(skeleton, v, &sub));
-                    alongside_main(skeleton, path, c, rule.strand_reach_m)
+                    if heavier.is_empty() {
+                        heavier.push(extension_through(skeleton, v, main, &sub));
+                    }
+                    heavier
+                        .iter()
+                        .any(|path| alongside(skeleton, path, c, rule.strand_reach_m))
                 });
             if noise {
                 keep[c.index()] = false;
+            } else if rule.strand_reach_m > 0.0 && rank + 1 < by_weight.len() {
+                heavier.push(extension_through(skeleton, v, c, &sub));
             }
         }
     }
@@ -185,16 +190,32 @@ pub(super) fn bark_spurs(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
     keep
 }
 
-/// The positions along the main extension from `fork`: the fork, then each
-/// node's heaviest child (by `sub`, the subtree lengths) up to a tip.
-fn main_extension(skeleton: &Skeleton, fork: NodeId, sub: &[f32]) -> Vec<Vec3> {
-    let mut path = vec![skeleton.position(fork)];
-    let mut at = fork;
+/// The positions along the branch from `fork` through its child `first`:
+/// the fork, then each node's heaviest child (by `sub`, the subtree
+/// lengths) up to a tip.
+fn extension_through(skeleton: &Skeleton, fork: NodeId, first: NodeId, sub: &[f32]) -> Vec<Vec3> {
+    let mut path = vec![skeleton.position(fork), skeleton.position(first)];
+    let mut at = first;
     while let Some(next) = heaviest_child(skeleton, at, sub) {
         path.push(skeleton.position(next));
         at = next;
     }
     path
+}
+
+/// True when every node of the lateral subtree at `lateral` lies within
+/// `reach_m` of the polyline `extension` (a heavier branch from the same
+/// fork): a strand that runs along that branch. On a thin, sparsely
+/// sampled branch a bin holds a point or two per side, the points of one
+/// side are not always linked to the other's, and the sides become two
+/// chains a branch's width apart. The heavier one is the branch; the other
+/// adds its length and a branch to the tree's totals.
+fn alongside(skeleton: &Skeleton, extension: &[Vec3], lateral: NodeId, reach_m: f32) -> bool {
+    all_in_subtree(skeleton, lateral, |p| {
+        extension
+            .windows(2)
+            .any(|w| point_segment_distance(p, w[0], w[1]) <= reach_m)
+    })
 }
 
 /// The child of `v` with the most length behind it (its subtree's, by
@@ -206,21 +227,6 @@ fn heaviest_child(skeleton: &Skeleton, v: NodeId, sub: &[f32]) -> Option<NodeId>
         .iter()
         .copied()
         .max_by(|&a, &b| weight(a).total_cmp(&weight(b)))
-}
-
-/// True when every node of the lateral subtree at `lateral` lies within
-/// `reach_m` of the polyline `extension` (the fork's main extension): a
-/// strand that runs along the branch it leaves. On a thin, sparsely
-/// sampled branch a bin holds a point or two per side, the points of one
-/// side are not always linked to the other's, and the sides become two
-/// chains a branch's width apart. The heavier one is the branch; the other
-/// adds its length and a branch to the tree's totals.
-fn alongside_main(skeleton: &Skeleton, extension: &[Vec3], lateral: NodeId, reach_m: f32) -> bool {
-    all_in_subtree(skeleton, lateral, |p| {
-        extension
-            .windows(2)
-            .any(|w| point_segment_distance(p, w[0], w[1]) <= reach_m)
-    })
 }
 
 /// True when every node of the subtree at `top` has a position that
@@ -594,10 +600,11 @@ mod tests {
     }
 
     /// A thin branch along x with a strand 1.5 cm beside it (the other side
-    /// of the branch, 20 cm long, so the length rule keeps it) and a twig
-    /// that leaves it at 40°: the strand rule drops only the strand.
+    /// of the branch, 20 cm long, so the length rule keeps it), and a twig
+    /// that leaves it at 40° with a shorter strand of its own beside it:
+    /// the strand rule drops both strands and keeps the twig.
     #[test]
-    fn a_strand_beside_its_branch_goes_and_a_twig_stays() {
+    fn strands_beside_heavier_branches_go_and_a_twig_stays() {
         let mut nodes = vec![node([0.0, 0.0, 0.0], None), node([0.0, 0.0, 1.0], Some(0))];
         let chain = |nodes: &mut Vec<Node>, step: Vec3, offset: Vec3, count: usize| {
             let mut parent = 1;
@@ -612,6 +619,8 @@ mod tests {
         chain(&mut nodes, along, Vec3::new(0.0, 0.015, 0.0), 4); // the strand
         let twig = Vec3::new(0.04, 0.034, 0.0); // 40° off, 5 cm steps
         chain(&mut nodes, twig, Vec3::ZERO, 4);
+        let beside_twig = Vec3::new(-0.034, 0.04, 0.0).normalize() * 0.015;
+        chain(&mut nodes, twig, beside_twig, 3); // its strand, 15 cm
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
         let mut rule = Pruning {
             min_branch_m: 0.09,
@@ -636,7 +645,10 @@ mod tests {
             tips.sort();
             tips
         };
-        assert_eq!(tips(&rule), vec![[160, 136], [200, 15], [400, 0]]);
+        assert_eq!(
+            tips(&rule),
+            vec![[110, 113], [160, 136], [200, 15], [400, 0]]
+        );
         rule.strand_reach_m = 0.03;
         assert_eq!(tips(&rule), vec![[160, 136], [400, 0]]);
     }
