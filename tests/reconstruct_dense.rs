@@ -433,12 +433,19 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
 }
 
 /// The synthetic Lombardy poplar of `silva eval --synthetic` seed 3 and a
-/// clean, dense terrestrial scan of it (1,000 points/m², no occlusion).
+/// clean, dense terrestrial scan of it (see [`clean_scan`]).
 fn clean_poplar_scan() -> (Skeleton, PointCloud) {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    clean_scan(silva::synth::Species::Poplar, 3)
+}
+
+/// The synthetic tree of `silva eval --synthetic` (species and seed as
+/// there) and a clean, dense terrestrial scan of it (1,000 points/m², no
+/// occlusion).
+fn clean_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointCloud) {
+    use silva::synth::{TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
-        &TreeParams::preset(Species::Poplar),
-        3,
+        &TreeParams::preset(species),
+        seed,
         silva::Anchor::at(OFFSET),
     );
     let clean = TlsOptions {
@@ -446,7 +453,7 @@ fn clean_poplar_scan() -> (Skeleton, PointCloud) {
         occlusion: false,
         ..TlsOptions::default()
     };
-    let cloud = simulate_tls(&truth, &clean, 3);
+    let cloud = simulate_tls(&truth, &clean, seed);
     (truth, cloud)
 }
 
@@ -533,18 +540,7 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
 /// branches; with it, the length is within a seventh of the truth's.
 #[test]
 fn a_thin_twig_is_one_branch_not_two_strands() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    let truth = generate(
-        &TreeParams::preset(Species::Birch),
-        2,
-        silva::Anchor::at(OFFSET),
-    );
-    let clean = TlsOptions {
-        points_per_m2: 1000.0,
-        occlusion: false,
-        ..TlsOptions::default()
-    };
-    let cloud = simulate_tls(&truth, &clean, 2);
+    let (truth, cloud) = clean_scan(silva::synth::Species::Birch, 2);
     let ratios = |opts: &Options| {
         let tree = reconstruct(&cloud, opts).unwrap();
         let branches = |orders: &[silva::reconstruct::metrics::OrderStats]| {
