@@ -20,7 +20,7 @@
 //! travel with them, and they keep the input order of the survivors. Neighbour
 //! queries go through [`PointIndex`], the crate's one kd-tree.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use glam::{I64Vec3, Vec3};
 

@@ -23,7 +23,7 @@
 //! terrestrial scan), the method is [`GroundMethod::None`] and every point
 //! is kept as tree.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use glam::{DMat3, DVec3, Vec2};
 
@@ -403,7 +403,7 @@ fn largest_patch<V>(mut cells: HashMap<(i32, i32), V>) -> HashMap<(i32, i32), V>
     // Starts in cell order, so that a tie keeps the same patch every run.
     let mut starts: Vec<(i32, i32)> = cells.keys().copied().collect();
     starts.sort_unstable();
-    let mut unseen: std::collections::HashSet<(i32, i32)> = starts.iter().copied().collect();
+    let mut unseen: foldhash::HashSet<(i32, i32)> = starts.iter().copied().collect();
     let mut largest: Vec<(i32, i32)> = Vec::new();
     for start in starts {
         if !unseen.remove(&start) {
@@ -426,7 +426,7 @@ fn largest_patch<V>(mut cells: HashMap<(i32, i32), V>) -> HashMap<(i32, i32), V>
             largest = patch;
         }
     }
-    let keep: std::collections::HashSet<(i32, i32)> = largest.into_iter().collect();
+    let keep: foldhash::HashSet<(i32, i32)> = largest.into_iter().collect();
     cells.retain(|cell, _| keep.contains(cell));
     cells
 }

@@ -29,7 +29,7 @@
 //! the trunk while none near its bottom does ([`check_trunk_not_beside`]).
 //! The error names the axis that looks up.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use glam::{Vec2, Vec3};
 
@@ -410,6 +410,10 @@ fn pieces(points: &[Vec3], link: f32) -> Vec<Vec<Vec3>> {
     by_set.into_values().collect()
 }
 
+/// Share of its cells that a flat surface covering a cloud's top must
+/// reach before [`check_ground_below`] calls the cloud upside down.
+const MIN_TOP_GROUND_SHARE: f32 = 0.5;
+
 /// Rejects a cloud whose ground lies on top: turned over, a clip or a
 /// plot scan shows a flat surface covering the top of the cloud and none
 /// (or less) at its bottom. `split` is the cloud's ground split as it
@@ -419,14 +423,20 @@ pub(super) fn check_ground_below(
     split: &GroundSplit,
 ) -> Result<(), ReconstructError> {
     let flipped: Vec<Vec3> = points.iter().map(|p| Vec3::new(p.x, p.y, -p.z)).collect();
-    let top_share = fit_terrain(&flipped)
-        .filter(Terrain::is_ground)
-        .map_or(0.0, |t| t.cell_share());
+    // The full fit only where its share could reach the test's half (the
+    // cheap share is an upper bound of it).
+    let top_share = if terrain_cell_share(&flipped) >= MIN_TOP_GROUND_SHARE {
+        fit_terrain(&flipped)
+            .filter(Terrain::is_ground)
+            .map_or(0.0, |t| t.cell_share())
+    } else {
+        0.0
+    };
     let bottom_share = match split.method {
         GroundMethod::None => 0.0,
         _ => split.terrain.as_ref().map_or(0.0, Terrain::cell_share),
     };
-    if top_share >= 0.5 && top_share > bottom_share + 0.2 {
+    if top_share >= MIN_TOP_GROUND_SHARE && top_share > bottom_share + 0.2 {
         return Err(ReconstructError::Degenerate(format!(
             "the cloud looks upside down: a flat surface covers {:.0} % of its top and only \
              {:.0} % of its bottom",

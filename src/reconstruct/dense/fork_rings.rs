@@ -17,7 +17,7 @@
 //! half then becomes a node on its own stem's axis, and the fork appears
 //! where the rings first part.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use glam::{Vec2, Vec3};
 
@@ -271,8 +271,7 @@ mod tests {
             uf.union(0, i);
         }
         let mut out = split_two_stem_sections(&pts, &mut uf, &RULE);
-        let roots: std::collections::HashSet<u32> =
-            (0..pts.len() as u32).map(|i| out.find(i)).collect();
+        let roots: foldhash::HashSet<u32> = (0..pts.len() as u32).map(|i| out.find(i)).collect();
         assert_eq!(roots.len(), 2);
     }
 }

@@ -11,7 +11,7 @@
 //! point, so the skeleton inherits the shortest-path tree's topology while
 //! its nodes sit inside the branches, not on the bark.
 
-use std::collections::HashMap;
+use foldhash::{HashMap, HashMapExt};
 
 use glam::{DVec3, Vec2, Vec3};
 
