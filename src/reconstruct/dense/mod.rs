@@ -48,16 +48,21 @@
 //!    fitted to slices half a metre tall, from a seed fit low on the stem,
 //!    and its nodes moved onto their centres: a sparse one-sided trunk's
 //!    sections are too thin for a circle, and their centroids lie towards
-//!    the scanner;
+//!    the scanner; then the thick laterals of the tracked nodes (and
+//!    theirs) tracked the same way, each under 0.8 of its fork's radius
+//!    (`stem_axis::recentre_limbs`): a limb seen from a few sides leaves
+//!    parallel chains on its bark;
 //! 8. `tips`: each tip moved from its last section's centroid to the
 //!    scan's last point ahead of it, and each twig on by the median gap
 //!    between a twig's last scanned point and its end;
 //! 9. the laterals of the tracked stem's nodes that never leave its fitted
-//!    bark dropped (`simplify::bark_spurs`).
+//!    bark dropped (`simplify::bark_spurs`), and the chains along a tracked
+//!    limb's bark (`simplify::limb_strands`).
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines. The skeleton's radii on the way are the sections'
-//! spreads, and on the tracked trunk the fitted circles' radii (step 7).
+//! spreads, and on the tracked trunk and limbs the fitted circles' radii
+//! (step 7).
 //! The skeleton handed over keeps only the fitted circles' radii (0
 //! elsewhere): the radius stage reads them as the stem's wood and its
 //! measured radii.
@@ -269,6 +274,17 @@ pub struct Params {
     pub stem_max_change: f32,
     /// …and fading the move out over this length of stem (metres) beyond.
     pub stem_fade_m: f32,
+    /// The tracked stem's laterals are tracked in turn, with the same
+    /// slices, where their circles stay at most this share of their fork's
+    /// fitted radius (see `stem_axis::recentre_limbs`; 0: off)…
+    pub limb_max_share: f32,
+    /// …seeded at a node within this distance (metres) of the fork…
+    pub limb_seed_reach_m: f32,
+    /// …when they carry at least this much branch length (metres), on
+    /// forks where the share allows circles of this radius (metres).
+    pub limb_min_subtree_m: f32,
+    /// See [`Params::limb_min_subtree_m`].
+    pub limb_min_radius_m: f32,
     /// Split cross-sections that hold both stems of a narrow fork (see
     /// `fork_rings`)…
     pub split_two_stems: bool,
@@ -383,6 +399,10 @@ impl Default for Params {
             stem_seed_height_m: 2.5,
             stem_max_change: 0.3,
             stem_fade_m: 1.0,
+            limb_max_share: 0.8,
+            limb_seed_reach_m: 1.0,
+            limb_min_subtree_m: 2.0,
+            limb_min_radius_m: 0.08,
             twin_min_turn_deg: 30.0,
             split_two_stems: true,
             two_stem_spread_bins: 2.0,
@@ -456,7 +476,16 @@ pub fn reconstruct(
     interrupt.check("stem axis")?;
     let tree_points: Vec<Vec3> = graph.points.iter().map(|&p| p - root).collect();
     let index = PointIndex::new(&tree_points);
-    let tracked = recentre_stem(&mut skeleton, &tree_points, &index, graph.bin_m, params);
+    let mut tracked = recentre_stem(&mut skeleton, &tree_points, &index, graph.bin_m, params);
+    let limbs = recentre_limbs(
+        &mut skeleton,
+        &tree_points,
+        &index,
+        &tracked,
+        graph.bin_m,
+        params,
+    );
+    tracked.extend(limbs);
     interrupt.check("tip placement")?;
     if params.tips_reach_last_points || params.tips_expected_gap {
         let rule = tips::TipRule {
@@ -730,7 +759,32 @@ fn recentre_stem(
     if params.stem_half_slice_m <= 0.0 {
         return Vec::new();
     }
-    let rule = stem_axis::StemRule {
+    stem_axis::recentre_stem(skeleton, points, index, &stem_rule(bin_m, params))
+}
+
+/// Step 7b: the tracked stem's thick laterals tracked in turn (see
+/// `stem_axis::recentre_limbs`). Returns the nodes so tracked.
+fn recentre_limbs(
+    skeleton: &mut Skeleton,
+    points: &[Vec3],
+    index: &PointIndex,
+    tracked: &[NodeId],
+    bin_m: f32,
+    params: &Params,
+) -> Vec<NodeId> {
+    let limb = stem_axis::LimbRule {
+        max_share: params.limb_max_share,
+        seed_reach_m: params.limb_seed_reach_m,
+        min_subtree_m: params.limb_min_subtree_m,
+        min_radius_m: params.limb_min_radius_m,
+    };
+    let rules = (&stem_rule(bin_m, params), &limb);
+    stem_axis::recentre_limbs(skeleton, points, index, tracked, rules)
+}
+
+/// The trunk tracker's settings.
+fn stem_rule(bin_m: f32, params: &Params) -> stem_axis::StemRule {
+    stem_axis::StemRule {
         half_window_m: params.stem_half_slice_m,
         axis_window_m: params.stem_axis_window_m,
         reach_m: params.stem_reach_m,
@@ -740,8 +794,7 @@ fn recentre_stem(
         seed_height_m: params.stem_seed_height_m,
         max_change: params.stem_max_change,
         fade_m: params.stem_fade_m,
-    };
-    stem_axis::recentre_stem(skeleton, points, index, &rule)
+    }
 }
 
 /// Every radius but the `tracked` nodes' fitted ones set to 0: a section's
@@ -760,14 +813,17 @@ fn keep_fitted_radii(skeleton: &mut Skeleton, tracked: &[NodeId]) {
 }
 
 /// Step 9: the skeleton without the tracked stem's spurs to its bark
-/// (`simplify::bark_spurs`), unless the spur rule is off, in canonical
+/// (`simplify::bark_spurs`) and the strands along tracked limbs' bark
+/// (`simplify::limb_strands`), unless the spur rule is off, in canonical
 /// order either way (`Skeleton::retain` returns it so).
 fn without_bark_spurs(skeleton: &Skeleton, bin_m: f32, params: &Params) -> Skeleton {
-    let keep = if params.spur_spread_bins.is_finite() {
-        simplify::bark_spurs(skeleton, params.spur_reach_bins * bin_m)
-    } else {
-        vec![true; skeleton.len()]
-    };
+    if !params.spur_spread_bins.is_finite() {
+        return skeleton.retain(&vec![true; skeleton.len()]);
+    }
+    let reach_m = params.spur_reach_bins * bin_m;
+    let spurs = simplify::bark_spurs(skeleton, reach_m);
+    let strands = simplify::limb_strands(skeleton, reach_m);
+    let keep: Vec<bool> = spurs.iter().zip(&strands).map(|(&a, &b)| a && b).collect();
     skeleton.retain(&keep)
 }
 

@@ -179,15 +179,95 @@ pub(super) fn bark_spurs(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
         }
         for &c in skeleton.children(v).iter().skip(1) {
             if within_reach(skeleton, v, c, radius + reach_m) {
-                let mut stack = vec![c];
-                while let Some(id) = stack.pop() {
-                    keep[id.index()] = false;
-                    stack.extend_from_slice(skeleton.children(id));
-                }
+                drop_subtree(skeleton, c, &mut keep);
             }
         }
     }
     keep
+}
+
+/// Marks (`false`) the lateral subtrees that run along the bark of a
+/// tracked limb: every node within the limb's fitted radius plus `reach_m`
+/// of its axis, the polyline through its fitted nodes. These are the
+/// parallel chains a limb seen from a few sides leaves on its bark, one per
+/// visible side (see `stem_axis::recentre_limbs`), once the limb's own
+/// chain is on its axis. A limb is a branch other than the trunk with
+/// fitted nodes (radius > 0; see [`fitted_limbs`]): the trunk's bark
+/// is [`bark_spurs`]' and [`inside_stem`]'s.
+pub(super) fn limb_strands(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
+    let mut keep = vec![true; skeleton.len()];
+    for limb in fitted_limbs(skeleton) {
+        let reach = limb.iter().fold(0.0f32, |r, &(_, radius)| r.max(radius)) + reach_m;
+        let low = limb.iter().fold(Vec3::INFINITY, |l, &(p, _)| l.min(p)) - reach;
+        let high = limb.iter().fold(Vec3::NEG_INFINITY, |h, &(p, _)| h.max(p)) + reach;
+        let near =
+            |p: Vec3| p.cmpge(low).all() && p.cmple(high).all() && near_limb(&limb, p, reach_m);
+        // Parents first, so that a strand goes whole from its first node.
+        // A fitted node is a limb's own axis; any other may be a strand's.
+        for c in skeleton.ids().skip(1) {
+            if keep[c.index()] && skeleton.radius(c) <= 0.0 && all_in_subtree(skeleton, c, near) {
+                drop_subtree(skeleton, c, &mut keep);
+            }
+        }
+    }
+    keep
+}
+
+/// The fitted limbs: per branch (a lateral and its chain of first
+/// children) whose nodes have radii, the polyline through those nodes as
+/// (position, radius), in order; the trunk (the branch from the root) and
+/// branches with one fitted node left out.
+fn fitted_limbs(skeleton: &Skeleton) -> Vec<Vec<(Vec3, f32)>> {
+    let fitted = |id: NodeId| skeleton.radius(id) > 0.0;
+    // The branch's first node: up through first-child links.
+    let branch_start = |id: NodeId| {
+        let mut at = id;
+        while let Some(p) = skeleton
+            .parent(at)
+            .filter(|&p| skeleton.children(p)[0] == at)
+        {
+            at = p;
+        }
+        at
+    };
+    let mut seen = vec![false; skeleton.len()];
+    let mut limbs = Vec::new();
+    for id in skeleton.ids().filter(|&id| fitted(id)) {
+        let start = branch_start(id);
+        if start == NodeId::ROOT || std::mem::replace(&mut seen[start.index()], true) {
+            continue;
+        }
+        let mut limb = Vec::new();
+        let mut at = Some(start);
+        while let Some(node) = at {
+            if fitted(node) {
+                limb.push((skeleton.position(node), skeleton.radius(node)));
+            }
+            at = skeleton.children(node).first().copied();
+        }
+        if limb.len() >= 2 {
+            limbs.push(limb);
+        }
+    }
+    limbs
+}
+
+/// True when `p` lies within the larger radius of some internode of
+/// `limb` plus `reach_m` of its axis.
+fn near_limb(limb: &[(Vec3, f32)], p: Vec3, reach_m: f32) -> bool {
+    limb.windows(2).any(|w| {
+        let ((a, ra), (b, rb)) = (w[0], w[1]);
+        point_segment_distance(p, a, b) <= ra.max(rb) + reach_m
+    })
+}
+
+/// Marks `top` and everything under it (`false`).
+fn drop_subtree(skeleton: &Skeleton, top: NodeId, keep: &mut [bool]) {
+    let mut stack = vec![top];
+    while let Some(id) = stack.pop() {
+        keep[id.index()] = false;
+        stack.extend_from_slice(skeleton.children(id));
+    }
 }
 
 /// The positions along the branch from `fork` through its child `first`:
@@ -603,6 +683,50 @@ mod tests {
     /// of the branch, 20 cm long, so the length rule keeps it), and a twig
     /// that leaves it at 40° with a shorter strand of its own beside it:
     /// the strand rule drops both strands and keeps the twig.
+    #[test]
+    fn strands_along_a_tracked_limb_go_and_its_twigs_stay() {
+        let r = |mut n: Node, radius: f32| {
+            n.radius_m = radius;
+            n
+        };
+        // The trunk (from the root), then a limb along +x at 1 m with fitted
+        // radii of 0.15 m on nodes 1 to 5 (0.2 m apart) and an unfitted
+        // continuation to 1.6 m.
+        let mut nodes = vec![r(node([0.0, 0.0, 0.0], None), 0.3)];
+        nodes.push(r(node([0.0, 0.0, 1.0], Some(0)), 0.3));
+        nodes.push(r(node([0.0, 0.0, 2.0], Some(1)), 0.3));
+        let mut parent = 1;
+        for k in 1..=8 {
+            let fitted = if k <= 5 { 0.15 } else { 0.0 };
+            nodes.push(r(node([0.2 * k as f32, 0.0, 1.0], Some(parent)), fitted));
+            parent = nodes.len() - 1;
+        }
+        // A strand on the limb's bark, 0.14 m beside its axis, from the
+        // trunk node at 1 m along to 0.9 m.
+        parent = 1;
+        for k in 1..=6 {
+            nodes.push(node([0.15 * k as f32, 0.14, 1.0], Some(parent)));
+            parent = nodes.len() - 1;
+        }
+        // A twig leaving the limb's second node at 60° for 0.6 m.
+        parent = 4;
+        for k in 1..=3 {
+            let p = Vec3::new(0.4, 0.0, 1.0) + Vec3::new(0.1, 0.173, 0.0) * k as f32;
+            nodes.push(node(p.to_array(), Some(parent)));
+            parent = nodes.len() - 1;
+        }
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let kept = s.retain(&limb_strands(&s, 0.045));
+        let mut tips: Vec<[i32; 3]> = kept
+            .ids()
+            .filter(|&id| kept.is_tip(id))
+            .map(|id| (kept.position(id) * 100.0).round().as_ivec3().to_array())
+            .collect();
+        tips.sort();
+        // The trunk's top, the limb's end and the twig's; not the strand's.
+        assert_eq!(tips, vec![[0, 0, 200], [70, 52, 100], [160, 0, 100]]);
+    }
+
     #[test]
     fn strands_beside_heavier_branches_go_and_a_twig_stays() {
         let mut nodes = vec![node([0.0, 0.0, 0.0], None), node([0.0, 0.0, 1.0], Some(0))];

@@ -149,12 +149,131 @@ pub(super) fn recentre_stem(
     for &(k, fit) in &tracked {
         skeleton.set_radius(chain[k], fit.radius);
     }
-    let offsets = offsets(skeleton, &chain, &tracked, rule.fade_m);
+    move_onto_axis(skeleton, &chain, &tracked, rule.fade_m);
+    tracked.into_iter().map(|(k, _)| chain[k]).collect()
+}
+
+/// How [`recentre_limbs`] picks and bounds the limbs it tracks.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LimbRule {
+    /// A limb's circles may be at most this share of its fork's fitted
+    /// radius (0: off).
+    pub(super) max_share: f32,
+    /// The seed fit is looked for at the limb's nodes within this distance
+    /// of its fork, in metres.
+    pub(super) seed_reach_m: f32,
+    /// Laterals with less branch length than this behind them (metres)
+    /// are not limbs: a branch as thick as a tracked circle carries more.
+    pub(super) min_subtree_m: f32,
+    /// Forks whose share would cap their limbs' circles below this radius
+    /// (metres) are passed over: the excess length lies along limbs of 10
+    /// to 30 cm, and thin limbs are what the sections already follow.
+    pub(super) min_radius_m: f32,
+}
+
+/// Tracks the thick laterals of the tracked stem, and theirs in turn, as
+/// [`recentre_stem`] tracks the trunk: each lateral chain (the lateral and
+/// its first children) is seeded by a well-supported circle near its fork,
+/// followed both ways, moved onto the fitted centres and given their radii.
+/// `tracked` are the nodes already tracked (the trunk's); returns the
+/// nodes newly tracked.
+///
+/// A limb seen from a few sides breaks into cross-sections on its bark:
+/// the skeleton runs along the bark rather than the axis, in parallel
+/// chains, with the radii of thin branches (stop 39's finding on occluded
+/// oaks: nodes at 1.01 times the limb's radius from its axis, radii a
+/// fifth of the truth). A slice half a metre tall holds enough of the
+/// limb's returns for a circle where a 3 cm section does not. A crown's
+/// slices also hold twigs, through which large circles fit: tracking every
+/// heavy lateral from anywhere (tried: volume 3 to 6 times the truth) let
+/// those through. So a limb must hang from a tracked node, and its circles
+/// stay under [`LimbRule::max_share`] of that node's radius (pipe model:
+/// a child is thinner than its parent).
+///
+/// Measured with `simplify::limb_strands` (release build, `silva eval
+/// --synthetic 20 --scan tls --repeat 1`, before → after): on the occluded
+/// scans the oaks' precision rose by 0.5–1.7 points and their volume / true
+/// from 0.80–0.87 to 0.90–0.98, poplars 3, 7 and 15 gained 2.3–4.2 points
+/// of precision; the medians moved 0.9132 → 0.9160 (precision), 0.8512 →
+/// 0.8509 (recall). Clean scans (`--density 1000 --no-occlusion`): recall
+/// 0.9966 → 0.9963, precision 0.9949 → 0.9952. tree1 and tree13 are
+/// unchanged (`silva eval --data`).
+pub(super) fn recentre_limbs(
+    skeleton: &mut Skeleton,
+    points: &[Vec3],
+    index: &PointIndex,
+    tracked: &[NodeId],
+    rule: (&StemRule, &LimbRule),
+) -> Vec<NodeId> {
+    let (stem, limb) = rule;
+    if limb.max_share <= 0.0 {
+        return Vec::new();
+    }
+    let mut fitted = vec![false; skeleton.len()];
+    for id in tracked {
+        fitted[id.index()] = true;
+    }
+    let mut limbs = Vec::new();
+    let sub = skeleton.subtree_lengths();
+    // Ids run parents first, so a limb tracked here can carry its own
+    // limbs further on.
+    for fork in skeleton.ids() {
+        if !fitted[fork.index()] {
+            continue;
+        }
+        let max_radius = limb.max_share * skeleton.radius(fork);
+        if max_radius < limb.min_radius_m.max(stem.min_radius_m) {
+            continue;
+        }
+        let laterals: Vec<NodeId> = skeleton.children(fork).iter().skip(1).copied().collect();
+        for lateral in laterals {
+            if sub[lateral.index()] < limb.min_subtree_m {
+                continue;
+            }
+            let chain = branch_chain(skeleton, fork, lateral);
+            let slices = Slices {
+                skeleton,
+                chain: &chain,
+                points,
+                index,
+                rule: stem,
+            };
+            let found = slices.track_limb(limb.seed_reach_m, max_radius);
+            for &(k, fit) in &found {
+                skeleton.set_radius(chain[k], fit.radius);
+                fitted[chain[k].index()] = true;
+                limbs.push(chain[k]);
+            }
+            move_onto_axis(skeleton, &chain, &found, stem.fade_m);
+        }
+    }
+    limbs
+}
+
+/// `fork`, then `first` and its chain of first children to a tip.
+fn branch_chain(skeleton: &Skeleton, fork: NodeId, first: NodeId) -> Vec<NodeId> {
+    let mut chain = vec![fork, first];
+    while let Some(&next) = skeleton.children(chain[chain.len() - 1]).first() {
+        chain.push(next);
+    }
+    chain
+}
+
+/// Moves the chain's nodes (all but its first) by [`offsets`].
+fn move_onto_axis(
+    skeleton: &mut Skeleton,
+    chain: &[NodeId],
+    tracked: &[(usize, SliceFit)],
+    fade_m: f32,
+) {
+    if tracked.is_empty() {
+        return;
+    }
+    let offsets = offsets(skeleton, chain, tracked, fade_m);
     for (k, offset) in offsets.into_iter().enumerate().skip(1) {
         let node = chain[k];
         skeleton.set_position(node, skeleton.position(node) + offset);
     }
-    tracked.into_iter().map(|(k, _)| chain[k]).collect()
 }
 
 /// The slices of the main stem's points that [`recentre_stem`] fits.
@@ -178,6 +297,43 @@ impl Slices<'_> {
         };
         self.fit(at, dir, self.rule.reach_m, search)
             .filter(|f| f.centre.distance(at) <= f.radius)
+    }
+
+    /// The fits of a limb's chain (`chain[0]` its fork): seeded at the
+    /// first node within `seed_reach_m` of the fork whose slice gives a
+    /// circle as well supported as the trunk's seed, then tracked both
+    /// ways while the circles stay at most `max_radius`. Sorted along the
+    /// chain; empty when nothing seeds.
+    fn track_limb(&self, seed_reach_m: f32, max_radius: f32) -> Vec<(usize, SliceFit)> {
+        let fork = self.skeleton.position(self.chain[0]);
+        let at = |k: usize| self.skeleton.position(self.chain[k]);
+        // Slices overlap: one try per half slice along the chain.
+        let mut last_try: Option<Vec3> = None;
+        let seed = (1..self.chain.len())
+            .take_while(|&k| at(k).distance(fork) <= seed_reach_m)
+            .filter(|&k| {
+                let fresh = last_try.is_none_or(|p| p.distance(at(k)) >= self.rule.half_window_m);
+                if fresh {
+                    last_try = Some(at(k));
+                }
+                fresh
+            })
+            .find_map(|k| {
+                self.at_node(k)
+                    .filter(|f| f.inliers >= self.rule.seed_points && f.radius <= max_radius)
+                    .map(|f| (k, f))
+            });
+        let Some((seed, fit)) = seed else {
+            return Vec::new();
+        };
+        let thin_enough = |found: &(usize, SliceFit)| found.1.radius <= max_radius;
+        let up = self.track((seed, fit), seed + 1..self.chain.len());
+        let down = self.track((seed, fit), (1..seed).rev());
+        let mut tracked = vec![(seed, fit)];
+        tracked.extend(up.into_iter().take_while(thin_enough));
+        tracked.extend(down.into_iter().take_while(thin_enough));
+        tracked.sort_by_key(|&(k, _)| k);
+        tracked
     }
 
     /// The fits that continue the trunk from `seed` along the chain's
@@ -493,6 +649,83 @@ mod tests {
                 assert!((r - 0.2).abs() < 0.01, "radius {r} at {p}");
             }
         }
+    }
+
+    /// A trunk of radius 0.3 m seen all round up to 3 m, and a limb of
+    /// radius 0.15 m leaving it at 2 m along +x, 45° up, seen on its upper
+    /// half; with a skeleton whose trunk is tracked (radius 0.3) and whose
+    /// limb chain runs on the limb's bark, 0.12 m above its axis, every
+    /// 0.1 m for 2 m.
+    fn trunk_and_limb() -> (Vec<Vec3>, Skeleton, Vec<NodeId>) {
+        let along = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let up = Vec3::new(-1.0, 0.0, 1.0).normalize();
+        let mut points: Vec<Vec3> = (0..150)
+            .flat_map(|i| {
+                (0..24).map(move |j| {
+                    let a = std::f32::consts::TAU * j as f32 / 24.0;
+                    Vec3::new(0.3 * a.cos(), 0.3 * a.sin(), 0.02 * i as f32)
+                })
+            })
+            .collect();
+        let base = Vec3::new(0.0, 0.0, 2.0);
+        for i in 0..100 {
+            for j in 0..12 {
+                let a = std::f32::consts::PI * (j as f32 + 0.5) / 12.0;
+                let across = up * a.sin() + Vec3::Y * a.cos();
+                points.push(base + along * (0.02 * i as f32) + across * 0.15);
+            }
+        }
+        let mut s = Skeleton::new(Anchor::default(), 0.3);
+        let mut trunk = vec![NodeId::ROOT];
+        for k in 1..=6 {
+            let node = s.add_child(trunk[k - 1], Vec3::new(0.0, 0.0, 0.5 * k as f32), 0.3);
+            trunk.push(node);
+        }
+        let mut at = trunk[4];
+        for k in 1..=20 {
+            at = s.add_child(at, base + along * (0.1 * k as f32) + up * 0.12, 0.05);
+        }
+        (points, s, trunk)
+    }
+
+    fn limb_rule(max_share: f32) -> LimbRule {
+        LimbRule {
+            max_share,
+            seed_reach_m: 1.0,
+            min_subtree_m: 1.0,
+            min_radius_m: 0.08,
+        }
+    }
+
+    #[test]
+    fn a_limb_seen_from_above_is_tracked_onto_its_axis() {
+        let (points, mut skeleton, trunk) = trunk_and_limb();
+        let index = PointIndex::new(&points);
+        let rules = (&rule(), &limb_rule(0.8));
+        let limb = recentre_limbs(&mut skeleton, &points, &index, &trunk, rules);
+        assert!(limb.len() >= 10, "{} limb nodes tracked", limb.len());
+        let (base, along) = (
+            Vec3::new(0.0, 0.0, 2.0),
+            Vec3::new(1.0, 0.0, 1.0).normalize(),
+        );
+        for id in limb {
+            let p = skeleton.position(id) - base;
+            let off_axis = (p - along * p.dot(along)).length();
+            let r = skeleton.radius(id);
+            assert!(off_axis < 0.03, "{off_axis} m off the axis at {p}");
+            assert!((r - 0.15).abs() < 0.015, "radius {r} at {p}");
+        }
+    }
+
+    #[test]
+    fn a_limb_thicker_than_its_share_of_the_fork_stays_as_it_was() {
+        let (points, mut skeleton, trunk) = trunk_and_limb();
+        let index = PointIndex::new(&points);
+        let before = skeleton.clone();
+        // 0.4 × 0.3 m = 0.12 m: the 0.15 m limb's circles are too large.
+        let rules = (&rule(), &limb_rule(0.4));
+        assert!(recentre_limbs(&mut skeleton, &points, &index, &trunk, rules).is_empty());
+        assert_eq!(skeleton, before);
     }
 
     #[test]
