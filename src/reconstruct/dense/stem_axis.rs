@@ -142,10 +142,7 @@ pub(super) fn recentre_stem(
     let Some((seed, seed_fit)) = seed else {
         return Vec::new();
     };
-    let mut tracked = vec![(seed, seed_fit)];
-    tracked.extend(slices.track((seed, seed_fit), seed + 1..chain.len()));
-    tracked.extend(slices.track((seed, seed_fit), (1..seed).rev()));
-    tracked.sort_by_key(|&(k, _)| k);
+    let tracked = slices.both_ways((seed, seed_fit), f32::INFINITY);
     for &(k, fit) in &tracked {
         skeleton.set_radius(chain[k], fit.radius);
     }
@@ -252,11 +249,7 @@ pub(super) fn recentre_limbs(
 
 /// `fork`, then `first` and its chain of first children to a tip.
 fn branch_chain(skeleton: &Skeleton, fork: NodeId, first: NodeId) -> Vec<NodeId> {
-    let mut chain = vec![fork, first];
-    while let Some(&next) = skeleton.children(chain[chain.len() - 1]).first() {
-        chain.push(next);
-    }
-    chain
+    first_children_from(skeleton, vec![fork, first])
 }
 
 /// Moves the chain's nodes (all but its first) by [`offsets`].
@@ -326,10 +319,17 @@ impl Slices<'_> {
         let Some((seed, fit)) = seed else {
             return Vec::new();
         };
+        self.both_ways((seed, fit), max_radius)
+    }
+
+    /// The seed and the fits that continue it up and down the chain
+    /// ([`Slices::track`]), each way only while the circles stay at most
+    /// `max_radius`; sorted along the chain.
+    fn both_ways(&self, seed: (usize, SliceFit), max_radius: f32) -> Vec<(usize, SliceFit)> {
         let thin_enough = |found: &(usize, SliceFit)| found.1.radius <= max_radius;
-        let up = self.track((seed, fit), seed + 1..self.chain.len());
-        let down = self.track((seed, fit), (1..seed).rev());
-        let mut tracked = vec![(seed, fit)];
+        let up = self.track(seed, seed.0 + 1..self.chain.len());
+        let down = self.track(seed, (1..seed.0).rev());
+        let mut tracked = vec![seed];
         tracked.extend(up.into_iter().take_while(thin_enough));
         tracked.extend(down.into_iter().take_while(thin_enough));
         tracked.sort_by_key(|&(k, _)| k);
@@ -502,8 +502,12 @@ fn offsets(
 
 /// The root and its chain of first children: the trunk and the leader.
 fn main_stem(skeleton: &Skeleton) -> Vec<NodeId> {
-    let mut chain = vec![NodeId::ROOT];
-    while let Some(&next) = skeleton.children(chain[chain.len() - 1]).first() {
+    first_children_from(skeleton, vec![NodeId::ROOT])
+}
+
+/// `chain` continued through the first children of its last node to a tip.
+fn first_children_from(skeleton: &Skeleton, mut chain: Vec<NodeId>) -> Vec<NodeId> {
+    while let Some(&next) = chain.last().and_then(|&at| skeleton.children(at).first()) {
         chain.push(next);
     }
     chain
