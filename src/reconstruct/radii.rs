@@ -676,6 +676,13 @@ pub fn fit_trunk(skeleton: &Skeleton, points: &[Vec3], crown: &Crown, params: &P
 /// bark, and a main chain that zigzags out to the bark, whose internodes
 /// claim the trunk's points; then the points near the trunk axis are
 /// fitted instead, and the robust fit rejects those of real branches.
+/// Laterals that leave the trunk inside the slice claim the bark around
+/// their bases too: when the points near the axis ring more of the trunk
+/// (more sectors hold inliers), their fit is taken. On a plot scan of the
+/// synthetic oak 1 on a 20° slope, once the strands along the trunk's bark
+/// were dropped, the trunk's own claim held 39 points over 5 of 12 sectors
+/// (radius 0.32 m) and the points near the axis 188 over 12 (0.352 m; the
+/// truth 0.354 m).
 fn claimed_fit(
     claims: &[(Claim, Vec<Vec3>); 2],
     axis: (Vec3, Vec3),
@@ -684,15 +691,15 @@ fn claimed_fit(
     let fit = |(claim, points): &(Claim, Vec<Vec3>)| {
         slice_fit(&projected(points, axis), axis.0.z, *claim, params)
     };
-    fit(&claims[0]).or_else(|first| {
-        fit(&claims[1]).map_err(|second| {
-            if second == first {
-                first
-            } else {
-                format!("{first}; with all points near the trunk axis, {second}")
-            }
-        })
-    })
+    match (fit(&claims[0]), fit(&claims[1])) {
+        (Ok(own), Ok(near)) if near.sectors > own.sectors => Ok(near),
+        (Ok(own), _) => Ok(own),
+        (Err(_), Ok(near)) => Ok(near),
+        (Err(first), Err(second)) if second == first => Err(first),
+        (Err(first), Err(second)) => Err(format!(
+            "{first}; with all points near the trunk axis, {second}"
+        )),
+    }
 }
 
 /// `points` projected along the line `axis` (a point and a direction) onto

@@ -56,8 +56,8 @@
 //!    scan's last point ahead of it, and each twig on by the median gap
 //!    between a twig's last scanned point and its end;
 //! 9. the laterals of the tracked stem's nodes that never leave its fitted
-//!    bark dropped (`simplify::bark_spurs`), and the chains along a tracked
-//!    limb's bark (`simplify::limb_strands`).
+//!    bark dropped (`simplify::bark_spurs`), and the chains along the
+//!    tracked trunk's or a tracked limb's bark (`simplify::bark_strands`).
 //!
 //! Radii are not set here: the shared stage in [`super::radii`] does that
 //! for both pipelines. The skeleton's radii on the way are the sections'
@@ -813,8 +813,8 @@ fn keep_fitted_radii(skeleton: &mut Skeleton, tracked: &[NodeId]) {
 }
 
 /// Step 9: the skeleton without the tracked stem's spurs to its bark
-/// (`simplify::bark_spurs`) and the strands along tracked limbs' bark
-/// (`simplify::limb_strands`), unless the spur rule is off, in canonical
+/// (`simplify::bark_spurs`) and the strands along the tracked trunk's and
+/// limbs' bark (`simplify::bark_strands`), unless the spur rule is off, in canonical
 /// order either way (`Skeleton::retain` returns it so).
 fn without_bark_spurs(skeleton: &Skeleton, bin_m: f32, params: &Params) -> Skeleton {
     if !params.spur_spread_bins.is_finite() {
@@ -822,7 +822,7 @@ fn without_bark_spurs(skeleton: &Skeleton, bin_m: f32, params: &Params) -> Skele
     }
     let reach_m = params.spur_reach_bins * bin_m;
     let spurs = simplify::bark_spurs(skeleton, reach_m);
-    let strands = simplify::limb_strands(skeleton, reach_m);
+    let strands = simplify::bark_strands(skeleton, reach_m);
     let keep: Vec<bool> = spurs.iter().zip(&strands).map(|(&a, &b)| a && b).collect();
     skeleton.retain(&keep)
 }

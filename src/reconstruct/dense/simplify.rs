@@ -186,24 +186,33 @@ pub(super) fn bark_spurs(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
     keep
 }
 
-/// Marks (`false`) the lateral subtrees that run along the bark of a
-/// tracked limb: every node within the limb's fitted radius plus `reach_m`
-/// of its axis, the polyline through its fitted nodes. These are the
-/// parallel chains a limb seen from a few sides leaves on its bark, one per
-/// visible side (see `stem_axis::recentre_limbs`), once the limb's own
-/// chain is on its axis. A limb is a branch other than the trunk with
-/// fitted nodes (radius > 0; see [`fitted_limbs`]): the trunk's bark
-/// is [`bark_spurs`]' and [`inside_stem`]'s.
-pub(super) fn limb_strands(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
+/// Marks (`false`) the lateral subtrees that run along the bark of the
+/// tracked trunk or a tracked limb: every node within its fitted radius
+/// plus `reach_m` of its axis, the polyline through its fitted nodes.
+/// These are the parallel chains a stem seen from a few sides leaves on
+/// its bark, one per visible side (see `stem_axis`), once its own chain is
+/// on its axis. [`bark_spurs`] only catches those that stay near their
+/// fork; a strand may run metres up the bark. A tracked branch is one with
+/// fitted nodes (radius > 0; see [`fitted_axes`]).
+///
+/// Measured with the trunk's strands added to the limbs' (release build,
+/// `silva eval --synthetic 20 --scan tls --repeat 1`): on the occluded
+/// scans the median precision rose 0.9160 → 0.9504 and recall fell
+/// 0.8509 → 0.8424, all of it on the poplars (1.3–3.0 points each), whose
+/// steep laterals run up the trunk's bark for metres; every other tree
+/// kept its recall and gained 0.8–5.1 points of precision. The median
+/// branch length / true went 1.23 → 1.15. Clean scans (`--density 1000
+/// --no-occlusion`): recall 0.9963 as before, precision 0.9952 → 0.9963.
+pub(super) fn bark_strands(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
     let mut keep = vec![true; skeleton.len()];
-    for limb in fitted_limbs(skeleton) {
-        let reach = limb.iter().fold(0.0f32, |r, &(_, radius)| r.max(radius)) + reach_m;
-        let low = limb.iter().fold(Vec3::INFINITY, |l, &(p, _)| l.min(p)) - reach;
-        let high = limb.iter().fold(Vec3::NEG_INFINITY, |h, &(p, _)| h.max(p)) + reach;
+    for axis in fitted_axes(skeleton) {
+        let reach = axis.iter().fold(0.0f32, |r, &(_, radius)| r.max(radius)) + reach_m;
+        let low = axis.iter().fold(Vec3::INFINITY, |l, &(p, _)| l.min(p)) - reach;
+        let high = axis.iter().fold(Vec3::NEG_INFINITY, |h, &(p, _)| h.max(p)) + reach;
         let near =
-            |p: Vec3| p.cmpge(low).all() && p.cmple(high).all() && near_limb(&limb, p, reach_m);
+            |p: Vec3| p.cmpge(low).all() && p.cmple(high).all() && near_axis(&axis, p, reach_m);
         // Parents first, so that a strand goes whole from its first node.
-        // A fitted node is a limb's own axis; any other may be a strand's.
+        // A fitted node is a stem's own axis; any other may be a strand's.
         for c in skeleton.ids().skip(1) {
             if keep[c.index()] && skeleton.radius(c) <= 0.0 && all_in_subtree(skeleton, c, near) {
                 drop_subtree(skeleton, c, &mut keep);
@@ -213,11 +222,11 @@ pub(super) fn limb_strands(skeleton: &Skeleton, reach_m: f32) -> Vec<bool> {
     keep
 }
 
-/// The fitted limbs: per branch (a lateral and its chain of first
-/// children) whose nodes have radii, the polyline through those nodes as
-/// (position, radius), in order; the trunk (the branch from the root) and
-/// branches with one fitted node left out.
-fn fitted_limbs(skeleton: &Skeleton) -> Vec<Vec<(Vec3, f32)>> {
+/// The tracked stems' axes: per branch (the trunk from the root, or a
+/// lateral, with its chain of first children) whose nodes have radii, the
+/// polyline through those nodes as (position, radius), in order; branches
+/// with one fitted node left out.
+fn fitted_axes(skeleton: &Skeleton) -> Vec<Vec<(Vec3, f32)>> {
     let fitted = |id: NodeId| skeleton.radius(id) > 0.0;
     // The branch's first node: up through first-child links.
     let branch_start = |id: NodeId| {
@@ -231,31 +240,31 @@ fn fitted_limbs(skeleton: &Skeleton) -> Vec<Vec<(Vec3, f32)>> {
         at
     };
     let mut seen = vec![false; skeleton.len()];
-    let mut limbs = Vec::new();
+    let mut axes = Vec::new();
     for id in skeleton.ids().filter(|&id| fitted(id)) {
         let start = branch_start(id);
-        if start == NodeId::ROOT || std::mem::replace(&mut seen[start.index()], true) {
+        if std::mem::replace(&mut seen[start.index()], true) {
             continue;
         }
-        let mut limb = Vec::new();
+        let mut axis = Vec::new();
         let mut at = Some(start);
         while let Some(node) = at {
             if fitted(node) {
-                limb.push((skeleton.position(node), skeleton.radius(node)));
+                axis.push((skeleton.position(node), skeleton.radius(node)));
             }
             at = skeleton.children(node).first().copied();
         }
-        if limb.len() >= 2 {
-            limbs.push(limb);
+        if axis.len() >= 2 {
+            axes.push(axis);
         }
     }
-    limbs
+    axes
 }
 
 /// True when `p` lies within the larger radius of some internode of
-/// `limb` plus `reach_m` of its axis.
-fn near_limb(limb: &[(Vec3, f32)], p: Vec3, reach_m: f32) -> bool {
-    limb.windows(2).any(|w| {
+/// `axis` plus `reach_m` of it.
+fn near_axis(axis: &[(Vec3, f32)], p: Vec3, reach_m: f32) -> bool {
+    axis.windows(2).any(|w| {
         let ((a, ra), (b, rb)) = (w[0], w[1]);
         point_segment_distance(p, a, b) <= ra.max(rb) + reach_m
     })
@@ -716,7 +725,7 @@ mod tests {
             parent = nodes.len() - 1;
         }
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
-        let kept = s.retain(&limb_strands(&s, 0.045));
+        let kept = s.retain(&bark_strands(&s, 0.045));
         let mut tips: Vec<[i32; 3]> = kept
             .ids()
             .filter(|&id| kept.is_tip(id))
@@ -725,6 +734,52 @@ mod tests {
         tips.sort();
         // The trunk's top, the limb's end and the twig's; not the strand's.
         assert_eq!(tips, vec![[0, 0, 200], [70, 52, 100], [160, 0, 100]]);
+    }
+
+    /// A trunk tracked from the root to 3 m (fitted radius 0.3 m), a strand
+    /// that climbs its bark 0.32 m from the axis from the root to 2.4 m,
+    /// and a branch that climbs it to 1 m before it leaves: the strand
+    /// goes, the branch stays. [`bark_spurs`] keeps the strand (it gets
+    /// 2.4 m from its fork), as the rule did before it took in the trunk.
+    #[test]
+    fn a_strand_up_the_tracked_trunks_bark_goes_and_a_branch_leaving_it_stays() {
+        let fitted = |p: [f32; 3], parent: Option<usize>| {
+            let mut n = node(p, parent);
+            n.radius_m = 0.3;
+            n
+        };
+        let mut nodes = vec![fitted([0.0, 0.0, 0.0], None)];
+        for k in 1..=6 {
+            nodes.push(fitted([0.0, 0.0, 0.5 * k as f32], Some(k - 1)));
+        }
+        let mut climb = |from: usize, to: [f32; 3], steps: usize| {
+            let start = nodes[from].position;
+            let mut parent = from;
+            for k in 1..=steps {
+                let t = k as f32 / steps as f32;
+                let p = start.lerp(Vec3::from(to), t);
+                nodes.push(node(p.to_array(), Some(parent)));
+                parent = nodes.len() - 1;
+            }
+            parent
+        };
+        climb(0, [0.32, 0.0, 2.4], 8);
+        let bark = climb(2, [0.0, 0.32, 1.0], 2);
+        climb(bark, [0.0, 1.5, 2.0], 4);
+        let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
+        let tips = |keep: &[bool]| {
+            let kept = s.retain(keep);
+            let mut tips: Vec<[i32; 3]> = kept
+                .ids()
+                .filter(|&id| kept.is_tip(id))
+                .map(|id| (kept.position(id) * 100.0).round().as_ivec3().to_array())
+                .collect();
+            tips.sort();
+            tips
+        };
+        let (trunk, strand, branch) = ([0, 0, 300], [32, 0, 240], [0, 150, 200]);
+        assert_eq!(tips(&bark_spurs(&s, 0.045)), vec![trunk, branch, strand]);
+        assert_eq!(tips(&bark_strands(&s, 0.045)), vec![trunk, branch]);
     }
 
     #[test]

@@ -187,7 +187,7 @@ pub(super) struct LimbRule {
 /// stay under [`LimbRule::max_share`] of that node's radius (pipe model:
 /// a child is thinner than its parent).
 ///
-/// Measured with `simplify::limb_strands` (release build, `silva eval
+/// Measured with `simplify::bark_strands` on limbs only (release build, `silva eval
 /// --synthetic 20 --scan tls --repeat 1`, before → after): on the occluded
 /// scans the oaks' precision rose by 0.5–1.7 points and their volume / true
 /// from 0.80–0.87 to 0.90–0.98, poplars 3, 7 and 15 gained 2.3–4.2 points
