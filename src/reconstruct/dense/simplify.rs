@@ -725,15 +725,23 @@ mod tests {
             parent = nodes.len() - 1;
         }
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
-        let kept = s.retain(&bark_strands(&s, 0.045));
+        // The trunk's top, the limb's end and the twig's; not the strand's.
+        assert_eq!(
+            kept_tips(&s, &bark_strands(&s, 0.045)),
+            vec![[0, 0, 200], [70, 52, 100], [160, 0, 100]]
+        );
+    }
+
+    /// The tips of `s` once `keep` is applied, in centimetres, sorted.
+    fn kept_tips(s: &Skeleton, keep: &[bool]) -> Vec<[i32; 3]> {
+        let kept = s.retain(keep);
         let mut tips: Vec<[i32; 3]> = kept
             .ids()
             .filter(|&id| kept.is_tip(id))
             .map(|id| (kept.position(id) * 100.0).round().as_ivec3().to_array())
             .collect();
         tips.sort();
-        // The trunk's top, the limb's end and the twig's; not the strand's.
-        assert_eq!(tips, vec![[0, 0, 200], [70, 52, 100], [160, 0, 100]]);
+        tips
     }
 
     /// A trunk tracked from the root to 3 m (fitted radius 0.3 m), a strand
@@ -767,19 +775,10 @@ mod tests {
         let bark = climb(2, [0.0, 0.32, 1.0], 2);
         climb(bark, [0.0, 1.5, 2.0], 4);
         let s = Skeleton::from_nodes(Anchor::default(), nodes).unwrap();
-        let tips = |keep: &[bool]| {
-            let kept = s.retain(keep);
-            let mut tips: Vec<[i32; 3]> = kept
-                .ids()
-                .filter(|&id| kept.is_tip(id))
-                .map(|id| (kept.position(id) * 100.0).round().as_ivec3().to_array())
-                .collect();
-            tips.sort();
-            tips
-        };
         let (trunk, strand, branch) = ([0, 0, 300], [32, 0, 240], [0, 150, 200]);
-        assert_eq!(tips(&bark_spurs(&s, 0.045)), vec![trunk, branch, strand]);
-        assert_eq!(tips(&bark_strands(&s, 0.045)), vec![trunk, branch]);
+        let spurs = kept_tips(&s, &bark_spurs(&s, 0.045));
+        assert_eq!(spurs, vec![trunk, branch, strand]);
+        assert_eq!(kept_tips(&s, &bark_strands(&s, 0.045)), vec![trunk, branch]);
     }
 
     #[test]
