@@ -10,7 +10,8 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use silva::encode::chaincode::{
-    ChainCode, ChainOptions, Limits, RadiusLayout, Resolution, decode, decode_compressed, encode,
+    ChainCode, ChainOptions, Limits, Prediction, RadiusLayout, Resolution, decode,
+    decode_compressed, encode,
 };
 
 #[allow(dead_code)]
@@ -52,8 +53,17 @@ fn chaincode(c: &mut Criterion) {
                 decode(&code).expect("valid")
             })
         });
+        // The default tries every step prediction; the cost of that
+        // against one fixed prediction.
         group.bench_function("encode", |b| {
             b.iter(|| encode(black_box(&tree), &opts).expect("encodable"))
+        });
+        let differential = ChainOptions {
+            prediction: Some(Prediction::DIFFERENTIAL),
+            ..opts
+        };
+        group.bench_function("encode differential only", |b| {
+            b.iter(|| encode(black_box(&tree), &differential).expect("encodable"))
         });
         group.bench_function("compress", |b| b.iter(|| black_box(&code).compress()));
         group.finish();
@@ -79,6 +89,16 @@ fn chaincode(c: &mut Criterion) {
     }
     group.bench_function("decode_compressed", |b| {
         b.iter(|| decode_compressed(black_box(&packed), &limits).expect("valid"))
+    });
+    // The default picks a damped prediction for this skeleton; the same
+    // skeleton with the paper's, to see what the scaling costs a decoder.
+    let differential = ChainOptions {
+        prediction: Some(Prediction::DIFFERENTIAL),
+        ..ChainOptions::default()
+    };
+    let paper = encode(&tree, &differential).expect("encodable").compress();
+    group.bench_function("decode_compressed differential", |b| {
+        b.iter(|| decode_compressed(black_box(&paper), &limits).expect("valid"))
     });
     // Decompressing each radius layout of kind 3 (the same code), one run.
     for layout in RadiusLayout::ALL {

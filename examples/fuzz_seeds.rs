@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
-use silva::encode::chaincode::{self, ChainCode, ChainOptions};
+use silva::encode::chaincode::{self, ChainCode, ChainOptions, Prediction};
 use silva::encode::lsystem::{self, LsOptions};
 use silva::synth::{
     AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
@@ -94,6 +94,22 @@ fn main() {
                 .expect("the encoder's move order");
             let name = format!("{name}-radii{}.k3", layout.byte());
             write(&root.join("chaincode_stream"), &name, &bytes);
+        }
+        // Every step prediction weight, in the plain and the compressed form.
+        for prediction in Prediction::ALL {
+            let o = ChainOptions {
+                prediction: Some(prediction),
+                ..ChainOptions::default()
+            };
+            let code = chaincode::encode(tree, &o).expect("encodable");
+            let w = prediction.quarters();
+            write(
+                &root.join("chaincode"),
+                &format!("{name}-w{w}.bin"),
+                &code.to_bytes(),
+            );
+            let name = format!("{name}-w{w}.k3");
+            write(&root.join("chaincode_stream"), &name, &code.compress());
         }
 
         let ls = lsystem::encode(tree, &LsOptions::default()).to_json();

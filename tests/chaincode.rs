@@ -6,8 +6,9 @@ mod chaincode_support;
 use chaincode_support::{botanical_tree, random_skeleton};
 use proptest::prelude::*;
 use silva::encode::chaincode::{
-    self, ChainCode, ChainError, ChainOptions, Limits, RadiusLayout, Resolution, Voxelisation,
-    decode, decode_bytes, decode_compressed, encode, encode_order, prune_like_lod, reduce_lod,
+    self, ChainCode, ChainError, ChainOptions, Limits, Prediction, RadiusLayout, Resolution,
+    Voxelisation, decode, decode_bytes, decode_compressed, encode, encode_order, prune_like_lod,
+    reduce_lod,
 };
 use silva::{NodeId, Skeleton};
 
@@ -106,6 +107,32 @@ fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
     ] {
         assert_eq!(decode_compressed(&other, &limits).unwrap(), decoded);
     }
+    // The default is one of the fixed predictions' codes; every one of
+    // them is faithful in every byte form.
+    let chosen = ChainOptions {
+        prediction: Some(code.header().prediction),
+        ..opts(resolution)
+    };
+    assert_eq!(encode(s, &chosen).unwrap(), code);
+    for prediction in Prediction::ALL {
+        let fixed = ChainOptions {
+            prediction: Some(prediction),
+            ..opts(resolution)
+        };
+        let fixed = encode(s, &fixed).unwrap();
+        assert_eq!(fixed.header().prediction, prediction);
+        let decoded = decode(&fixed).unwrap();
+        assert_faithful(s, &fixed, &decoded);
+        assert_eq!(
+            ChainCode::from_bytes(&fixed.to_bytes(), &limits).unwrap(),
+            fixed
+        );
+        let packed = fixed.compress();
+        assert_eq!(ChainCode::decompress(&packed, &limits).unwrap(), fixed);
+        assert_eq!(decode_compressed(&packed, &limits).unwrap(), decoded);
+        let single = fixed.compress_single_string();
+        assert_eq!(decode_compressed(&single, &limits).unwrap(), decoded);
+    }
     code
 }
 
@@ -143,9 +170,14 @@ proptest! {
     }
 
     #[test]
-    fn lod_equals_pruning_the_skeleton(seed in any::<u64>(), nodes in 1usize..120, t_mm in 0u32..400) {
+    fn lod_equals_pruning_the_skeleton(seed in any::<u64>(), nodes in 1usize..120, t_mm in 0u32..400,
+                                       quarters in 0u8..=4) {
         let s = random_skeleton(seed, nodes);
-        let code = encode(&s, &opts(Resolution::PerInternode(5.0))).unwrap();
+        let fixed = ChainOptions {
+            prediction: Prediction::from_quarters(quarters),
+            ..opts(Resolution::PerInternode(5.0))
+        };
+        let code = encode(&s, &fixed).unwrap();
         // Radii are whole millimetres: a threshold half way between two is
         // unaffected by quantisation.
         let t = (t_mm as f32 + 0.5) * 0.001;
@@ -280,6 +312,67 @@ fn compressed_botanical_tree_is_small_at_r5() {
         );
         assert!(code.compress().len() < code.to_bytes().len());
     }
+}
+
+/// Random directions and lengths stand in for airborne reconstructions,
+/// whose consecutive internodes are nearly unrelated: there a damped
+/// prediction codes shorter than the paper's. A botanical tree's internodes
+/// follow on smoothly, and the paper's prediction stays.
+#[test]
+fn the_prediction_that_codes_shortest_is_kept() {
+    let size = |s: &Skeleton, prediction| {
+        let o = ChainOptions {
+            prediction,
+            ..ChainOptions::default()
+        };
+        let code = encode(s, &o).unwrap();
+        (code.header().prediction, code.compress().len())
+    };
+    for seed in 0..3 {
+        let s = random_skeleton(seed, 1500);
+        let (chosen, best) = size(&s, None);
+        assert_ne!(chosen, Prediction::DIFFERENTIAL, "seed {seed}");
+        for fixed in Prediction::ALL {
+            let (_, bytes) = size(&s, Some(fixed));
+            assert!(best <= bytes, "seed {seed}: {best} B, {fixed:?} {bytes} B");
+        }
+        let (_, differential) = size(&s, Some(Prediction::DIFFERENTIAL));
+        assert!(
+            best * 100 <= differential * 97,
+            "seed {seed}: {best} vs {differential} B"
+        );
+    }
+    let tree = botanical_tree(1, 1500);
+    assert_eq!(size(&tree, None).0, Prediction::DIFFERENTIAL);
+}
+
+#[test]
+fn a_damped_prediction_is_one_header_byte_and_four_quarters_none() {
+    let s = random_skeleton(7, 200);
+    let with = |quarters| {
+        let o = ChainOptions {
+            prediction: Prediction::from_quarters(quarters),
+            ..ChainOptions::default()
+        };
+        encode(&s, &o).unwrap().to_bytes()
+    };
+    let (damped, paper) = (with(2), with(4));
+    // Flags (byte 6, after the magic, version and kind): bit 2 set, and
+    // the weight after the voxel size, the radius step and the resolution.
+    let weight_at = 6 + 1 + 8 + 4 + 4;
+    assert_eq!(damped[6] & 4, 4);
+    assert_eq!(paper[6] & 4, 0);
+    assert_eq!(damped[weight_at], 2);
+    // The paper's weight is written by leaving the flag out: a flagged 4
+    // (or more) is refused, so each code has one byte form.
+    let mut four = damped.clone();
+    four[weight_at] = 4;
+    assert_eq!(
+        ChainCode::from_bytes(&four, &Limits::default()),
+        Err(ChainError::Malformed(
+            "prediction weight is not 0-3 quarters"
+        ))
+    );
 }
 
 #[test]

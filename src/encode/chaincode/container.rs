@@ -9,10 +9,11 @@
 //! | magic `SLVC` | 4 |
 //! | version (1) | 1 |
 //! | kind: 0 plain, 1 interpolative | 1 |
-//! | flags: bit 0 CRS present, bit 1 resolution present | 1 |
+//! | flags: bit 0 CRS present, bit 1 resolution present, bit 2 damped prediction | 1 |
 //! | voxel size `d` (f64 LE, metres) | 8 |
 //! | radius step (f32 LE, metres) | 4 |
 //! | resolution `r` (f32 LE), if flagged | 4 |
+//! | prediction weight in quarters, 0–3, if flagged | 1 |
 //! | anchor origin x, y, z (f64 LE) | 24 |
 //! | root position x, y, z relative to the anchor (f32 LE) | 12 |
 //! | CRS: varint length + UTF-8, if flagged | 1 + n |
@@ -32,7 +33,8 @@ use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
 use super::split::{Form, RadiusLayout};
 use super::{
-    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, bwt, dbf6, interpolative, lod, mtf, split,
+    ALPHABET, ChainCode, ChainError, ChainHeader, Limits, Prediction, bwt, dbf6, interpolative,
+    lod, mtf, split,
 };
 use crate::skeleton::{Anchor, Skeleton};
 use glam::{DVec3, Vec3};
@@ -51,6 +53,11 @@ const KIND_SPLIT: u8 = 2;
 const KIND_SPLIT_3: u8 = 3;
 const FLAG_CRS: u8 = 1;
 const FLAG_RESOLUTION: u8 = 2;
+/// A damped step prediction: one byte with its weight in quarters (0–3)
+/// follows the resolution. Without the flag the prediction is the paper's
+/// (four quarters), so streams written before the flag existed read as
+/// they always did, and each code has one byte form.
+const FLAG_PREDICTION: u8 = 4;
 const MAX_SYMBOL_GAP: u64 = (ALPHABET - 1) as u64;
 
 impl ChainCode {
@@ -245,6 +252,7 @@ impl ChainCode {
 
     fn header_bytes(&self, kind: u8) -> Vec<u8> {
         let h = &self.header;
+        let damped = h.prediction != Prediction::DIFFERENTIAL;
         let mut out = Vec::with_capacity(64);
         out.extend_from_slice(MAGIC);
         out.push(VERSION);
@@ -254,12 +262,16 @@ impl ChainCode {
                 FLAG_RESOLUTION
             } else {
                 0
-            };
+            }
+            | if damped { FLAG_PREDICTION } else { 0 };
         out.push(flags);
         out.extend_from_slice(&h.voxel_size_m.to_le_bytes());
         out.extend_from_slice(&h.radius_step_m.to_le_bytes());
         if let Some(r) = h.resolution {
             out.extend_from_slice(&r.to_le_bytes());
+        }
+        if damped {
+            out.push(h.prediction.quarters());
         }
         for c in h.anchor.origin.to_array() {
             out.extend_from_slice(&c.to_le_bytes());
@@ -431,7 +443,7 @@ fn read_header(
     }
     let kind = cur.u8()?;
     let flags = cur.u8()?;
-    if flags & !(FLAG_CRS | FLAG_RESOLUTION) != 0 {
+    if flags & !(FLAG_CRS | FLAG_RESOLUTION | FLAG_PREDICTION) != 0 {
         return Err(ChainError::Malformed("unknown flags"));
     }
     let voxel_size_m = cur.f64()?;
@@ -440,6 +452,18 @@ fn read_header(
         Some(cur.f32()?)
     } else {
         None
+    };
+    let prediction = if flags & FLAG_PREDICTION != 0 {
+        match Prediction::from_quarters(cur.u8()?) {
+            Some(p) if p != Prediction::DIFFERENTIAL => p,
+            _ => {
+                return Err(ChainError::Malformed(
+                    "prediction weight is not 0-3 quarters",
+                ));
+            }
+        }
+    } else {
+        Prediction::DIFFERENTIAL
     };
     let origin = DVec3::new(cur.f64()?, cur.f64()?, cur.f64()?);
     let root_position = Vec3::new(cur.f32()?, cur.f32()?, cur.f32()?);
@@ -475,6 +499,7 @@ fn read_header(
         radius_step_m,
         anchor: Anchor { origin, crs },
         root_position,
+        prediction,
     };
     header.validate()?;
     Ok((header, kind, n_symbols as usize, n_nodes as usize))

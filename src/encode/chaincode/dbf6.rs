@@ -23,9 +23,10 @@ use std::collections::VecDeque;
 use glam::DVec3;
 
 use super::radii::quantise;
+use super::split;
 use super::{
     ChainCode, ChainError, ChainHeader, ChainOptions, END, FORK, Limits, MOVE_NEG_X, MOVE_POS_X,
-    Resolution, TIP, Voxelisation,
+    Prediction, Resolution, TIP, Voxelisation,
 };
 use crate::skeleton::{Node, NodeId, Skeleton};
 
@@ -47,9 +48,45 @@ const MOVES: [[i32; 3]; 6] = [
 /// first child of every node is its main extension (see
 /// [`Skeleton::order_main_extension_first`]).
 ///
+/// With `opts.prediction` unset, encodes with every [`Prediction`] weight
+/// and keeps the code whose corrections compress shortest (kind 3's
+/// correction streams, the only part the prediction changes; the paper's
+/// differential prediction on a tie).
+///
 /// The result holds at most `Limits::default()` symbols and nodes, so that
 /// every code this function produces can be read back with default limits.
 pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, ChainError> {
+    if let Some(prediction) = opts.prediction {
+        return encode_predicted(skeleton, opts, prediction);
+    }
+    let mut best: Option<(u64, ChainCode)> = None;
+    let mut first_error = None;
+    for prediction in Prediction::ALL {
+        match encode_predicted(skeleton, opts, prediction) {
+            Ok(code) => {
+                let bits = split::correction_bits(&code).unwrap_or(u64::MAX);
+                if best.as_ref().is_none_or(|(fewest, _)| bits < *fewest) {
+                    best = Some((bits, code));
+                }
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+            }
+        }
+    }
+    match (best, first_error) {
+        (Some((_, code)), _) => Ok(code),
+        (None, Some(e)) => Err(e),
+        (None, None) => unreachable!("Prediction::ALL is not empty"),
+    }
+}
+
+/// [`encode`] with one step prediction.
+fn encode_predicted(
+    skeleton: &Skeleton,
+    opts: &ChainOptions,
+    prediction: Prediction,
+) -> Result<ChainCode, ChainError> {
     let step = checked_radius_step(skeleton, opts)?;
     let limits = Limits::default();
     let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
@@ -65,10 +102,13 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
     for &node in &order[1..] {
         let parent = skeleton.parent(node).expect("only the root lacks a parent");
         let is_main = skeleton.children(parent)[0] == node;
-        // Differential prediction: a main extension repeats the previous
-        // internode's step; a branch's first internode is coded in full.
+        // Differential prediction: a main extension repeats (a share of)
+        // the previous internode's step; a branch's first internode is
+        // coded in full.
         let predicted_step = match skeleton.parent(parent) {
-            Some(grand) if is_main => sub(voxels[parent.index()], voxels[grand.index()]),
+            Some(grand) if is_main => {
+                prediction.step(sub(voxels[parent.index()], voxels[grand.index()]))
+            }
             _ => [0; 3],
         };
         let predicted = add(voxels[parent.index()], predicted_step).expect("within 2^29");
@@ -103,6 +143,7 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
             radius_step_m: step,
             anchor: skeleton.anchor().clone(),
             root_position: skeleton.position(NodeId::ROOT),
+            prediction,
         },
         symbols,
         radii_q,
@@ -246,6 +287,8 @@ struct Turtle<'a> {
     voxel: [i32; 3],
     /// The previous internode's step on this branch; zero at a branch start.
     history: [i32; 3],
+    /// How the next step is predicted from `history`.
+    prediction: Prediction,
     /// A 6 read now (without moves) is a zero-length fork internode.
     markers_allowed: bool,
     /// The 7 that found the queue empty was read.
@@ -274,6 +317,7 @@ impl<'a> Turtle<'a> {
             node: 0,
             voxel: [0; 3],
             history: [0; 3],
+            prediction: header.prediction,
             markers_allowed: true,
             finished: n_symbols == 0,
         };
@@ -322,7 +366,8 @@ impl<'a> Turtle<'a> {
     #[inline(always)]
     fn end_internode(&mut self, pos: usize, s: u8, correction: [i32; 3]) -> Result<(), ChainError> {
         let overflow = ChainError::CoordinateOverflow { position: pos };
-        let step = add(self.history, correction).ok_or(overflow.clone())?;
+        let predicted = self.prediction.step(self.history);
+        let step = add(predicted, correction).ok_or(overflow.clone())?;
         let voxel = add(self.voxel, step).ok_or(overflow)?;
         let idx = self.nodes.len();
         let Some(&q) = self.radii.get(idx) else {
@@ -532,6 +577,7 @@ mod tests {
     fn reproduces_the_papers_differential_code() {
         let opts = ChainOptions {
             resolution: Resolution::VoxelSize(1.0),
+            prediction: Some(Prediction::DIFFERENTIAL),
             ..ChainOptions::default()
         };
         let code = encode(&paper_tree(), &opts).unwrap();

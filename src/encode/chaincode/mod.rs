@@ -25,7 +25,8 @@
 //!   tip, in queue order.
 //! - **Differential prediction.** The first internode of a branch is coded in
 //!   full; every following internode codes only its correction from the
-//!   previous internode's voxel step.
+//!   previous internode's voxel step, or from a damped share of it
+//!   ([`Prediction`]; the encoder keeps whichever weight codes shortest).
 //! - **Multi-way forks** become a run of fork symbols: the first ends the
 //!   internode, each further one is a zero-length internode at the same node
 //!   that enqueues one more lateral.
@@ -141,6 +142,72 @@ pub enum Voxelisation {
     Predictive,
 }
 
+/// How a continuation internode's voxel step is predicted from the
+/// previous internode's step on the same branch: that step times
+/// `quarters / 4`, rounded half away from zero per axis. Four quarters is
+/// the paper's differential prediction (§3.1), right for trees whose
+/// internodes follow on smoothly. Fewer quarters damp it: consecutive
+/// internodes of a reconstruction from a point cloud turn by 40–60°
+/// (median) and differ in length by a factor of 1.5, so the previous step
+/// is a poor guess of the next, and on airborne reconstructions no
+/// prediction at all codes shortest (`tools/chaincode_predictors.py`,
+/// `docs/chaincode.md` §9). A branch's first internode is never predicted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Prediction(u8);
+
+impl Prediction {
+    /// The paper's differential prediction: the previous step itself.
+    pub const DIFFERENTIAL: Self = Self(4);
+    /// No prediction: every internode codes its whole step.
+    pub const NONE: Self = Self(0);
+    /// Every weight, the paper's first.
+    pub const ALL: [Self; 5] = [Self(4), Self(3), Self(2), Self(1), Self(0)];
+
+    /// The prediction weighted `quarters / 4`, if `quarters` is at most 4.
+    pub fn from_quarters(quarters: u8) -> Option<Self> {
+        (quarters <= 4).then_some(Self(quarters))
+    }
+
+    /// The weight in quarters, 0–4.
+    pub fn quarters(self) -> u8 {
+        self.0
+    }
+
+    /// The predicted step after a step `previous`: each axis times
+    /// `quarters / 4`, rounded half away from zero, in exact integer
+    /// arithmetic (no larger than `previous`, so it cannot overflow).
+    ///
+    /// ```
+    /// use silva::encode::chaincode::Prediction;
+    ///
+    /// let half = Prediction::from_quarters(2).unwrap();
+    /// assert_eq!(half.step([3, -3, 4]), [2, -2, 2]);
+    /// let three = Prediction::from_quarters(3).unwrap();
+    /// assert_eq!(three.step([-5, 2, 1]), [-4, 2, 1]);
+    /// assert_eq!(Prediction::DIFFERENTIAL.step([7, -1, 0]), [7, -1, 0]);
+    /// assert_eq!(Prediction::NONE.step([7, -1, 0]), [0, 0, 0]);
+    /// assert_eq!(Prediction::from_quarters(5), None);
+    /// ```
+    #[inline(always)]
+    pub fn step(self, previous: [i32; 3]) -> [i32; 3] {
+        if self == Self::DIFFERENTIAL {
+            return previous;
+        }
+        previous.map(|c| {
+            // |c|·w/4 rounded up from a half: below 2^31 for w ≤ 3.
+            let scaled = ((u64::from(c.unsigned_abs()) * u64::from(self.0) + 2) >> 2) as i32;
+            if c < 0 { -scaled } else { scaled }
+        })
+    }
+}
+
+impl Default for Prediction {
+    /// The paper's differential prediction.
+    fn default() -> Self {
+        Self::DIFFERENTIAL
+    }
+}
+
 /// Encoder settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChainOptions {
@@ -151,16 +218,21 @@ pub struct ChainOptions {
     /// Radius quantisation step in metres: radii are stored as
     /// `round(radius_m / radius_step_m)`, so each is within half a step.
     pub radius_step_m: f32,
+    /// The step prediction, or `None` to encode with each of
+    /// [`Prediction::ALL`] and keep the code whose corrections compress
+    /// shortest (see [`encode`]), the paper's on a tie.
+    pub prediction: Option<Prediction>,
 }
 
 impl Default for ChainOptions {
-    /// `r = 5`, predictive voxels and 1 mm radius steps (radii within
-    /// ±0.5 mm).
+    /// `r = 5`, predictive voxels, 1 mm radius steps (radii within
+    /// ±0.5 mm) and the prediction whose corrections compress shortest.
     fn default() -> Self {
         Self {
             resolution: Resolution::PerInternode(5.0),
             voxelisation: Voxelisation::Predictive,
             radius_step_m: 0.001,
+            prediction: None,
         }
     }
 }
@@ -180,6 +252,8 @@ pub struct ChainHeader {
     /// Root (trunk base) position relative to the anchor, stored exactly;
     /// voxel `(0,0,0)` is centred on it.
     pub root_position: Vec3,
+    /// How continuation internodes' steps are predicted.
+    pub prediction: Prediction,
 }
 
 /// A DBF6 chain-coded skeleton: header, symbol stream and quantised radii.

@@ -310,6 +310,24 @@ pub(crate) fn build(code: &ChainCode, form: Form, radii: Option<RadiusLayout>) -
     })
 }
 
+/// The bits kind 3 spends on the corrections of `code` (their six streams
+/// with metadata), or `None` if the code is not in the encoder's move
+/// order. Only these depend on the step prediction: the encoder compares
+/// predictions by them (`dbf6::encode`) without compressing whole codes.
+pub(crate) fn correction_bits(code: &ChainCode) -> Option<u64> {
+    let streams = split(code.symbols())?;
+    let mut meta = Vec::new();
+    let mut bits = BitWriter::new();
+    for (k, stream) in streams.corrections.iter().flatten().enumerate() {
+        if k < 3 {
+            put_centred_stream(&mut meta, &mut bits, stream);
+        } else {
+            put_stream(&mut meta, &mut bits, stream);
+        }
+    }
+    Some(meta.len() as u64 * 8 + bits.bit_len())
+}
+
 /// Kind 2 structure: the items through BWT (virtual end marker) and MTF.
 fn put_structure_items(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]) {
     let (last, primary) = bwt::bwt_forward(structure, STRUCT_ALPHABET);
