@@ -70,6 +70,17 @@ fn airborne_report_counts_the_trees_that_meet_each_target() {
         close(height, mean_of("height_error_m", f64::abs)),
         "{height}"
     );
+    // Each tree has its chain code rows at r = 3, 5 and 10, each with
+    // its measured encoding and decoding times.
+    for tree in json["trees"].as_array().unwrap() {
+        let rows = tree["encoding"]["chain"].as_array().unwrap();
+        let resolutions: Vec<f64> = rows.iter().map(|r| f(r, "resolution")).collect();
+        assert_eq!(resolutions, [3.0, 5.0, 10.0]);
+        assert!(
+            rows.iter()
+                .all(|r| f(r, "encode_ms") > 0.0 && f(r, "decode_ms") > 0.0)
+        );
+    }
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
         table.contains("synthetic trees meeting each target"),

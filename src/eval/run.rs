@@ -157,6 +157,10 @@ pub struct ChainRow {
     /// Sizes, error and levels of detail.
     #[serde(flatten)]
     pub code: chaincode::ChainStats,
+    /// Encode + compress time (`chaincode::encode` with the default
+    /// options, which try every step prediction, then `compress`: skeleton
+    /// to bytes, as storage does it), median of 3 runs, in milliseconds.
+    pub encode_ms: f64,
     /// Decompress + decode time (`chaincode::decode_compressed`, bytes to
     /// skeleton), median of 15 runs, in milliseconds.
     pub decode_ms: f64,
@@ -291,19 +295,27 @@ pub fn encoding_figures(skeleton: &Skeleton) -> EncodingFigures {
 /// a third between two evals; 15 cost under 50 ms per tree and resolution.
 const DECODE_RUNS: usize = 15;
 
+/// Timed encodings per chain code row (the median is reported): 1–40 ms
+/// each, so a few runs suffice.
+const ENCODE_RUNS: usize = 3;
+
 fn chain_row(skeleton: &Skeleton, resolution: f32) -> Option<ChainRow> {
     let st = chaincode::stats(skeleton, resolution).ok()?;
     let opts = chaincode::ChainOptions {
         resolution: chaincode::Resolution::PerInternode(resolution),
         ..chaincode::ChainOptions::default()
     };
-    let bytes = chaincode::encode(skeleton, &opts).ok()?.compress();
+    let (bytes, enc) = timed_median(ENCODE_RUNS, || {
+        chaincode::encode(skeleton, &opts).map(|code| code.compress())
+    });
+    let bytes = bytes.ok()?;
     let limits = chaincode::Limits::default();
     let (_, dec) = timed_median(DECODE_RUNS, || {
         chaincode::decode_compressed(&bytes, &limits)
     });
     Some(ChainRow {
         code: st,
+        encode_ms: enc.as_secs_f64() * 1e3,
         decode_ms: dec.as_secs_f64() * 1e3,
     })
 }
