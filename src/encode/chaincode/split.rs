@@ -278,13 +278,7 @@ pub(crate) fn build(code: &ChainCode, form: Form, radii: Option<RadiusLayout>) -
         Form::Kind3 => put_structure_bits(&mut meta, &mut bits, &streams.structure),
     }
     let structure_bits = bits.bit_len();
-    for (k, stream) in streams.corrections.iter().flatten().enumerate() {
-        if form == Form::Kind3 && k < 3 {
-            put_centred_stream(&mut meta, &mut bits, stream);
-        } else {
-            put_stream(&mut meta, &mut bits, stream);
-        }
-    }
+    put_corrections(&mut meta, &mut bits, &streams.corrections, form);
     let correction_bits = bits.bit_len() - structure_bits;
 
     let scan = lod::scan(code.symbols(), code.radii_q().len()).ok()?;
@@ -318,14 +312,25 @@ pub(crate) fn correction_bits(code: &ChainCode) -> Option<u64> {
     let streams = split(code.symbols())?;
     let mut meta = Vec::new();
     let mut bits = BitWriter::new();
-    for (k, stream) in streams.corrections.iter().flatten().enumerate() {
-        if k < 3 {
-            put_centred_stream(&mut meta, &mut bits, stream);
+    put_corrections(&mut meta, &mut bits, &streams.corrections, Form::Kind3);
+    Some(meta.len() as u64 * 8 + bits.bit_len())
+}
+
+/// Writes the six correction streams: kind 3 centres the three of
+/// branch-first internodes, kind 2 does not.
+fn put_corrections(
+    meta: &mut Vec<u8>,
+    bits: &mut BitWriter,
+    corrections: &Corrections,
+    form: Form,
+) {
+    for (k, stream) in corrections.iter().flatten().enumerate() {
+        if form == Form::Kind3 && k < 3 {
+            put_centred_stream(meta, bits, stream);
         } else {
-            put_stream(&mut meta, &mut bits, stream);
+            put_stream(meta, bits, stream);
         }
     }
-    Some(meta.len() as u64 * 8 + bits.bit_len())
 }
 
 /// Kind 2 structure: the items through BWT (virtual end marker) and MTF.
