@@ -701,6 +701,56 @@ fn a_clip_without_ground_turned_over_is_flagged() {
     }
 }
 
+/// A clip cut without its ground and lying on its side (exported with `x`
+/// or `y` up, as mesh and game tools write it) has neither terrain nor bark
+/// to tell which way is up; its crown's top, hit all round and most, now
+/// lies at one side, and the reconstruction says which axis looks up
+/// (`upright::seen_from_beside`). Upright, the same clips get no such note.
+/// (Over seeds 1–10 of each species, 29 of the 40 clips are flagged lying
+/// with `x` up and 27 with `y` up, two of them naming the wrong axis; none
+/// upright.)
+#[test]
+fn a_clip_without_ground_lying_on_its_side_is_flagged() {
+    for (species, seed) in [
+        (Species::Oak, 3),
+        (Species::Birch, 2),
+        (Species::Poplar, 4),
+        (Species::Pine, 3),
+    ] {
+        let opts = AlsOptions {
+            classify_ground: true,
+            ..AlsOptions::default()
+        };
+        let cloud = simulate_als(&truth(species, seed), &opts, seed);
+        let tree = PointCloud::from_points(
+            cloud.offset,
+            cloud
+                .points
+                .iter()
+                .zip(ground_labels(&cloud))
+                .filter(|&(_, ground)| !ground)
+                .map(|(p, _)| *p)
+                .collect(),
+        );
+        let side_note = |cloud: &PointCloud| {
+            let result = reconstruct(cloud, &Params::default()).expect("a best effort");
+            result
+                .notes
+                .into_iter()
+                .find(|n| n.contains("may lie on its side"))
+        };
+        assert_eq!(side_note(&tree), None, "{species:?} {seed} upright");
+        for up in ['x', 'y'] {
+            let note = side_note(&lying_with_up(&tree, up))
+                .unwrap_or_else(|| panic!("{species:?} {seed} lying with {up} up: no note"));
+            assert!(
+                note.contains(&format!("if +{up} is up")) && note.contains("z axis points up"),
+                "{species:?} {seed} lying with {up} up: {note}"
+            );
+        }
+    }
+}
+
 /// A sparse terrestrial scan (40 points/m² of bark, as `silva synth --scan
 /// tls --density 40`) turned over: its twigs lie at the bottom, so
 /// `Mode::Auto` sends it to this pipeline, whose upside-down test finds the

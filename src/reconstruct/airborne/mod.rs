@@ -304,7 +304,11 @@ fn separated(
     }
     check_volume(&split.tree.points)?;
     if split.method == GroundMethod::None {
-        notes.extend(super::upright::seen_from_below(&split.tree.points));
+        let tree = &split.tree.points;
+        notes.extend(
+            super::upright::seen_from_below(tree)
+                .or_else(|| super::upright::seen_from_beside(tree)),
+        );
     }
     Ok((finite, split))
 }
