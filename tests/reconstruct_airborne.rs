@@ -798,6 +798,53 @@ fn a_sparse_terrestrial_scan_turned_over_is_rejected() {
     }
 }
 
+/// A terrestrial scan sparser still (20 or 40 points/m² of bark) turned
+/// over may hold too few points for its trunk to ring at the top; but a
+/// terrestrial scanner sees the trunk best and the crown's top poorly, so
+/// the highest tenth now gathers as closely as a stem while the lowest
+/// spreads like a crown's top, and the reconstruction says so
+/// (`upright::trunk_on_top`). Upright, no such note.
+#[test]
+fn a_sparser_terrestrial_scan_turned_over_is_flagged_by_its_trunk_on_top() {
+    let cases = [
+        (Species::Birch, 2, 20.0),
+        (Species::Oak, 2, 20.0),
+        (Species::Pine, 6, 20.0),
+        (Species::Birch, 6, 40.0),
+    ];
+    for (species, seed, points_per_m2) in cases {
+        let tls = silva::synth::TlsOptions {
+            points_per_m2,
+            ..silva::synth::TlsOptions::default()
+        };
+        let cloud = silva::synth::simulate_tls(&truth(species, seed), &tls, seed);
+        let turned = PointCloud::from_points(
+            cloud.offset,
+            cloud
+                .points
+                .iter()
+                .map(|p| Vec3::new(p.x, -p.y, -p.z))
+                .collect(),
+        );
+        let auto = Options::default();
+        let upright = silva::reconstruct::reconstruct(&cloud, &auto).expect("a tree");
+        assert!(
+            !upright.notes.iter().any(|n| n.contains("upside down")),
+            "{species:?} {seed}: {:?}",
+            upright.notes
+        );
+        let turned = silva::reconstruct::reconstruct(&turned, &auto).expect("a best effort");
+        assert!(
+            turned
+                .notes
+                .iter()
+                .any(|n| n.contains("may be upside down") && n.contains("as a trunk would")),
+            "{species:?} {seed} turned over: {:?}",
+            turned.notes
+        );
+    }
+}
+
 /// A clip turned about a horizontal axis carries its ground along: the
 /// terrain fit finds it at the turn's angle (at 30° and 45° too, where a
 /// 1 m cell spans more than the ground tolerance in z), keeps it out of the

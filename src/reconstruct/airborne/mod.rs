@@ -307,6 +307,7 @@ fn separated(
         let tree = &split.tree.points;
         notes.extend(
             super::upright::seen_from_below(tree)
+                .or_else(|| super::upright::trunk_on_top(tree))
                 .or_else(|| super::upright::seen_from_beside(tree)),
         );
     }
