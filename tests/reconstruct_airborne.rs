@@ -655,6 +655,24 @@ fn bare_leaf_off_crowns_are_not_contracted() {
     );
 }
 
+/// A synthetic AHN-like clip cut without its ground: the returns that the
+/// simulator classifies as ground (class 2) dropped.
+fn clip_without_ground(species: Species, seed: u64) -> PointCloud {
+    let opts = AlsOptions {
+        classify_ground: true,
+        ..AlsOptions::default()
+    };
+    let cloud = simulate_als(&truth(species, seed), &opts, seed);
+    let tree = cloud
+        .points
+        .iter()
+        .zip(ground_labels(&cloud))
+        .filter(|&(_, ground)| !ground)
+        .map(|(p, _)| *p)
+        .collect();
+    PointCloud::from_points(cloud.offset, tree)
+}
+
 /// A clip cut without its ground and turned over (here by dropping the
 /// returns of class 2) has no terrain to tell which way is up; its crown's
 /// top, hit all round and most, now lies at the bottom, and the
@@ -672,22 +690,11 @@ fn a_clip_without_ground_turned_over_is_flagged() {
         (Species::Pine, 5),
         (Species::Pine, 6),
     ] {
-        let opts = AlsOptions {
-            classify_ground: true,
-            ..AlsOptions::default()
-        };
-        let cloud = simulate_als(&truth(species, seed), &opts, seed);
-        let tree: Vec<Vec3> = cloud
-            .points
-            .iter()
-            .zip(ground_labels(&cloud))
-            .filter(|&(_, ground)| !ground)
-            .map(|(p, _)| *p)
-            .collect();
-        let turned: Vec<Vec3> = tree.iter().map(|p| p.with_z(-p.z)).collect();
+        let tree = clip_without_ground(species, seed);
+        let turned: Vec<Vec3> = tree.points.iter().map(|p| p.with_z(-p.z)).collect();
         let flagged = |points: Vec<Vec3>| {
             let result = reconstruct(
-                &PointCloud::from_points(cloud.offset, points),
+                &PointCloud::from_points(tree.offset, points),
                 &Params::default(),
             )
             .expect("a best effort");
@@ -696,7 +703,7 @@ fn a_clip_without_ground_turned_over_is_flagged() {
                 .iter()
                 .any(|n| n.contains("may be upside down"))
         };
-        assert!(!flagged(tree), "{species:?} {seed} upright");
+        assert!(!flagged(tree.points.clone()), "{species:?} {seed} upright");
         assert!(flagged(turned), "{species:?} {seed} turned over");
     }
 }
@@ -717,21 +724,7 @@ fn a_clip_without_ground_lying_on_its_side_is_flagged() {
         (Species::Poplar, 4),
         (Species::Pine, 3),
     ] {
-        let opts = AlsOptions {
-            classify_ground: true,
-            ..AlsOptions::default()
-        };
-        let cloud = simulate_als(&truth(species, seed), &opts, seed);
-        let tree = PointCloud::from_points(
-            cloud.offset,
-            cloud
-                .points
-                .iter()
-                .zip(ground_labels(&cloud))
-                .filter(|&(_, ground)| !ground)
-                .map(|(p, _)| *p)
-                .collect(),
-        );
+        let tree = clip_without_ground(species, seed);
         let side_note = |cloud: &PointCloud| {
             let result = reconstruct(cloud, &Params::default()).expect("a best effort");
             result
@@ -751,6 +744,31 @@ fn a_clip_without_ground_lying_on_its_side_is_flagged() {
     }
 }
 
+/// A synthetic terrestrial scan at `points_per_m2` of bark, turned over
+/// ((x, y, z) → (x, −y, −z)), after checking that upright it reconstructs
+/// (`Mode::Auto`) without an upside-down note.
+fn sparse_scan_turned_over(species: Species, seed: u64, points_per_m2: f32) -> PointCloud {
+    let tls = silva::synth::TlsOptions {
+        points_per_m2,
+        ..silva::synth::TlsOptions::default()
+    };
+    let cloud = silva::synth::simulate_tls(&truth(species, seed), &tls, seed);
+    let upright = silva::reconstruct::reconstruct(&cloud, &Options::default()).expect("a tree");
+    assert!(
+        !upright.notes.iter().any(|n| n.contains("upside down")),
+        "{species:?} {seed}: {:?}",
+        upright.notes
+    );
+    PointCloud::from_points(
+        cloud.offset,
+        cloud
+            .points
+            .iter()
+            .map(|p| Vec3::new(p.x, -p.y, -p.z))
+            .collect(),
+    )
+}
+
 /// A sparse terrestrial scan (40 points/m² of bark, as `silva synth --scan
 /// tls --density 40`) turned over: its twigs lie at the bottom, so
 /// `Mode::Auto` sends it to this pipeline, whose upside-down test finds the
@@ -768,27 +786,8 @@ fn a_sparse_terrestrial_scan_turned_over_is_rejected() {
         (Species::Pine, 2),
     ];
     for (species, seed) in cases {
-        let tls = silva::synth::TlsOptions {
-            points_per_m2: 40.0,
-            ..silva::synth::TlsOptions::default()
-        };
-        let cloud = silva::synth::simulate_tls(&truth(species, seed), &tls, seed);
-        let turned = PointCloud::from_points(
-            cloud.offset,
-            cloud
-                .points
-                .iter()
-                .map(|p| Vec3::new(p.x, -p.y, -p.z))
-                .collect(),
-        );
-        let auto = Options::default();
-        let upright = silva::reconstruct::reconstruct(&cloud, &auto).expect("a tree");
-        assert!(
-            !upright.notes.iter().any(|n| n.contains("upside down")),
-            "{species:?} {seed}: {:?}",
-            upright.notes
-        );
-        match silva::reconstruct::reconstruct(&turned, &auto) {
+        let turned = sparse_scan_turned_over(species, seed, 40.0);
+        match silva::reconstruct::reconstruct(&turned, &Options::default()) {
             Ok(tree) => panic!("{species:?} {seed} turned over: {:?}", tree.notes),
             Err(e) => assert!(
                 e.to_string().contains("upside down") && e.to_string().contains("z axis"),
@@ -813,27 +812,9 @@ fn a_sparser_terrestrial_scan_turned_over_is_flagged_by_its_trunk_on_top() {
         (Species::Birch, 6, 40.0),
     ];
     for (species, seed, points_per_m2) in cases {
-        let tls = silva::synth::TlsOptions {
-            points_per_m2,
-            ..silva::synth::TlsOptions::default()
-        };
-        let cloud = silva::synth::simulate_tls(&truth(species, seed), &tls, seed);
-        let turned = PointCloud::from_points(
-            cloud.offset,
-            cloud
-                .points
-                .iter()
-                .map(|p| Vec3::new(p.x, -p.y, -p.z))
-                .collect(),
-        );
-        let auto = Options::default();
-        let upright = silva::reconstruct::reconstruct(&cloud, &auto).expect("a tree");
-        assert!(
-            !upright.notes.iter().any(|n| n.contains("upside down")),
-            "{species:?} {seed}: {:?}",
-            upright.notes
-        );
-        let turned = silva::reconstruct::reconstruct(&turned, &auto).expect("a best effort");
+        let turned = sparse_scan_turned_over(species, seed, points_per_m2);
+        let turned =
+            silva::reconstruct::reconstruct(&turned, &Options::default()).expect("a best effort");
         assert!(
             turned
                 .notes
