@@ -298,7 +298,9 @@ pub(crate) fn trunk_on_top(points: &[Vec3]) -> Option<String> {
 /// now flagged (11, 12, 12 and 6 before), none upright; on 120 more (seeds
 /// 11–25) 93, 95, 97 and 91 (10, 8, 13 and 17 before), and upright one
 /// more than before, a leaf-off oak whose highest tenth holds a few twigs
-/// (20 returns) and one side of its broad crown 65. Sparse terrestrial
+/// (20 returns) and one side of its broad crown 65; on 120 more (seeds
+/// 26–40) 97, 95, 98 and 91 (10, 8, 21 and 10 before), and again one more
+/// upright, a leaf-on birch with 17 returns in its highest tenth. Sparse terrestrial
 /// scans (`--scan tls --density 20`, seeds 1–6; the 11 of 24 that the
 /// trunk tests do not reject) lying on a side go unflagged 1–3 times
 /// instead of 8–9, none upright; ahn3_delft and tiny are flagged lying
