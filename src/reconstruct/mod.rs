@@ -471,10 +471,25 @@ pub(crate) fn z_range<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (f32, f
 /// branches as lean (31° and 36° on two upright oaks) and flagged 2, 62 and
 /// 56. In `silva reconstruct`, none of 100 upright synthetic TLS scans is
 /// flagged (the airborne pipeline does not run this test).
+///
+/// The trunk's axis over the lowest [`AXIS_LEAN_SHARE`]
+/// ([`upright::axis_lean`]) measures the lean too, and the larger counts:
+/// the points' slope misses a stout trunk's lean when its slanted lowest end
+/// fills the band (tree1 turned 45° about +x: unflagged before, 42° now). On 24 clouds of
+/// `silva synth --scan tls` (seeds 1–24) and tree1, tree13 and tiny, each
+/// turned both ways about x and y, `silva reconstruct` flagged 72 of 108
+/// turned by 30° (32 before), 105 of 108 by 45° (104; tiny, which goes to
+/// the airborne pipeline, is the rest) and 104 by 60° (104), and none
+/// upright; `silva eval --synthetic 100 --scan tls` (seeds 1 and 101, the
+/// second with ground) reports the same as before, one lean note each.
 const FLAGGED_LEAN_DEG: f32 = 30.0;
 
 /// The share of the height, from the bottom, whose points measure the lean.
 const LEAN_SHARE: f32 = 0.15;
+
+/// The share of the height, from the bottom, whose axis also measures the
+/// lean ([`upright::axis_lean`]); the larger of the two leans counts.
+const AXIS_LEAN_SHARE: f32 = 0.3;
 
 /// A trunk leaning more than this from vertical (degrees) is an error.
 const MAX_LEAN_DEG: f32 = 60.0;
@@ -514,8 +529,10 @@ pub(crate) fn check_upright(
              ({high_r:.2} m): the tree looks upside down"
         )));
     }
+    let axis_top = base_z + AXIS_LEAN_SHARE * height;
     let lean_deg = upright::lean(&band(0.0, LEAN_SHARE))
         .length()
+        .max(upright::axis_lean(points, base_z, axis_top).length())
         .atan()
         .to_degrees();
     if low.is_empty() || lean_deg <= FLAGGED_LEAN_DEG {
@@ -783,6 +800,41 @@ mod tests {
             ..Options::default()
         };
         reconstruct(&cloud, &options)
+    }
+
+    /// A stout trunk turned 45°: the slope of its lowest points reads the
+    /// slanted bark across its lowest end, far under 45°; its axis does not.
+    #[test]
+    fn a_stout_trunk_turned_45_degrees_is_flagged_by_its_axis() {
+        let bark = |i: usize, n: usize, radius: f32, z0: f32, z1: f32| {
+            let a = i as f32 * 2.399_963;
+            let z = z0 + (z1 - z0) * i as f32 / n as f32;
+            Vec3::new(radius * a.cos(), radius * a.sin(), z)
+        };
+        // A trunk 0.8 m thick and 2 m tall under a crown of 40 twigs.
+        let mut tree: Vec<Vec3> = (0..4000).map(|i| bark(i, 4000, 0.4, 0.0, 2.0)).collect();
+        for k in 0..40 {
+            let a = k as f32 * 2.399_963;
+            let tip = Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), 3.0 + (k % 5) as f32);
+            let from = Vec3::new(0.0, 0.0, 2.0);
+            tree.extend((0..100).map(|i| from.lerp(tip, i as f32 / 100.0)));
+        }
+        let turn = glam::Quat::from_rotation_x(45f32.to_radians());
+        let tilted: Vec<Vec3> = tree.iter().map(|&p| turn * p).collect();
+        let (low, high) = z_range(&tilted);
+        let band: Vec<Vec3> = tilted
+            .iter()
+            .copied()
+            .filter(|p| p.z <= low + LEAN_SHARE * (high - low))
+            .collect();
+        let slope_deg = upright::lean(&band).length().atan().to_degrees();
+        assert!(slope_deg < FLAGGED_LEAN_DEG, "{slope_deg}");
+        let flag = match check_upright(&tilted, low, high) {
+            Ok(note) => note.expect("a 45° tilt is flagged"),
+            Err(e) => e.to_string(),
+        };
+        assert!(flag.contains("leans") && flag.contains("tilted"), "{flag}");
+        assert_eq!(check_upright(&tree, 0.0, 7.0), Ok(None));
     }
 
     /// A passed deadline stops each pipeline at its first step; the default

@@ -566,12 +566,15 @@ fn neighbour_graph(
     super::check_height(&points)?;
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
-    notes.extend(super::check_upright(&points, base_z, top_z)?);
+    // The trunk tests name the axis that is up, so their error comes before
+    // the spreads' and the lean's (a tree lying on its side leans ~90°).
+    let upright = super::check_upright(&points, base_z, top_z);
     super::upright::check_stands_on_its_trunk(
         &points,
         (STEM_LINK_SPACINGS * spacing).max(0.02),
         super::upright::DENSE_SLICES,
     )?;
+    notes.extend(upright?);
     Ok(NeighbourGraph {
         points,
         edges,
