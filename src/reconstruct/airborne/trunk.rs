@@ -627,13 +627,7 @@ mod tests {
             .collect();
         let terrain = fit_terrain(&ground).expect("flat ground");
         let trunk = add_trunk(&tree, Some(&terrain), &Params::default());
-        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
-        let base = trunk.points[0];
-        assert!(
-            base.truncate().distance(Vec2::new(1.2, 0.5)) < 0.1,
-            "{base}"
-        );
-        assert!(base.z.abs() < 0.05, "{base}");
+        assert_on_stem_returns(&trunk, Vec2::new(1.2, 0.5), 0.1);
         // Without a terrain the band has no ground level: not used.
         let terrain_free = add_trunk(&tree, None, &Params::default());
         assert_ne!(terrain_free.rule, TrunkRule::OnStemReturns);
@@ -648,13 +642,7 @@ mod tests {
         let mut tree = crown_ring(4.0, 4.5, 9);
         tree.extend([Vec3::new(0.15, 0.1, 1.8), Vec3::new(-0.2, -0.15, 2.6)]);
         let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
-        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
-        let base = trunk.points[0];
-        assert!(
-            base.truncate().distance(Vec2::new(0.15, 0.1)) < 0.05,
-            "{base}"
-        );
-        assert!(base.z.abs() < 0.05, "{base}");
+        assert_on_stem_returns(&trunk, Vec2::new(0.15, 0.1), 0.05);
     }
 
     #[test]
@@ -671,9 +659,16 @@ mod tests {
             Vec3::new(-3.8, -5.2, 2.4),
         ]);
         let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
+        assert_on_stem_returns(&trunk, Vec2::new(0.3, 0.2), 0.05);
+    }
+
+    /// Asserts that `trunk` stands on stem returns, its base on the ground
+    /// within `tolerance_m` of `xy`.
+    fn assert_on_stem_returns(trunk: &Trunk, xy: Vec2, tolerance_m: f32) {
         assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
-        let base = trunk.points[0].truncate();
-        assert!(base.distance(Vec2::new(0.3, 0.2)) < 0.05, "base at {base}");
+        let base = trunk.points[0];
+        assert!(base.truncate().distance(xy) < tolerance_m, "base at {base}");
+        assert!(base.z.abs() < 0.05, "base at {base}");
     }
 
     /// 200 crown returns on a cylinder of `radius` from `base_z` up, in
@@ -703,9 +698,8 @@ mod tests {
         let mut tree = crown_ring(1.5, 3.0, 9);
         tree.extend([Vec3::new(-0.14, 0.31, 0.50), Vec3::new(0.31, -0.16, 0.54)]);
         let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
-        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
-        let base = trunk.points[0].truncate();
-        assert!(base.length() < 0.15, "base at {base}, not between the hits");
+        // Between the hits.
+        assert_on_stem_returns(&trunk, Vec2::ZERO, 0.15);
     }
 
     #[test]
@@ -717,9 +711,7 @@ mod tests {
         tree.extend([Vec3::new(0.1, 0.0, 0.8), Vec3::new(-0.1, 0.1, 1.9)]);
         tree.extend((0..9).map(|i| Vec3::new(4.5, -1.0 + 0.25 * i as f32, 2.0)));
         let trunk = add_trunk(&tree, Some(&flat_terrain()), &Params::default());
-        assert_eq!(trunk.rule, TrunkRule::OnStemReturns);
-        let base = trunk.points[0].truncate();
-        assert!(base.length() < 0.2, "base at {base}, not on the stem");
+        assert_on_stem_returns(&trunk, Vec2::ZERO, 0.2);
     }
 
     #[test]
