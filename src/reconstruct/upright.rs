@@ -465,23 +465,31 @@ const AXIS_LAYERS: usize = 4;
 /// out near 4°.
 fn axis_slope(piece: &[Vec3]) -> Vec2 {
     let (low, high) = super::z_range(piece);
-    let layer = (high - low) / AXIS_LAYERS as f32;
-    let mut sums = [(Vec3::ZERO, 0usize); AXIS_LAYERS];
-    for p in piece {
-        let k = (((p.z - low) / layer) as usize).min(AXIS_LAYERS - 1);
-        sums[k].0 += *p;
-        sums[k].1 += 1;
+    if high - low <= 0.0 {
+        return Vec2::ZERO;
     }
-    let centroids: Vec<Vec3> = sums
+    let centroids: Vec<Vec3> = height_layers(piece, low, high, AXIS_LAYERS)
         .iter()
-        .filter(|(_, n)| *n > 0)
-        .map(|(sum, n)| *sum / *n as f32)
+        .filter(|layer| !layer.is_empty())
+        .map(|layer| layer.iter().copied().sum::<Vec3>() / layer.len() as f32)
         .collect();
-    if layer > 0.0 && centroids.len() >= 3 {
+    if centroids.len() >= 3 {
         lean(&centroids)
     } else {
         Vec2::ZERO
     }
+}
+
+/// The `points` from height `low` to `high` (both included) in `n` layers
+/// of equal height, lowest first. `high` must lie above `low`.
+fn height_layers(points: &[Vec3], low: f32, high: f32, n: usize) -> Vec<Vec<Vec3>> {
+    let layer = (high - low) / n as f32;
+    let mut layers = vec![Vec::new(); n];
+    for p in points.iter().filter(|p| (low..=high).contains(&p.z)) {
+        let k = (((p.z - low) / layer) as usize).min(n - 1);
+        layers[k].push(*p);
+    }
+    layers
 }
 
 /// Layers in which [`axis_lean`] takes the median point of a trunk.
@@ -503,21 +511,24 @@ const AXIS_LEAN_MIN_POINTS: usize = 5;
 /// y, the prototype measured 42–48° with this, 17–58° with [`lean`]. A low
 /// limb moves one layer's median, and a pairwise median shrugs that off.
 pub(crate) fn axis_lean(points: &[Vec3], low: f32, high: f32) -> Vec2 {
-    let layer = (high - low) / AXIS_LEAN_LAYERS as f32;
-    if layer.is_nan() || layer <= 0.0 {
+    let span = high - low;
+    if span.is_nan() || span <= 0.0 {
         return Vec2::ZERO;
     }
-    let mut layers: Vec<(Vec<f32>, Vec<f32>)> = vec![Default::default(); AXIS_LEAN_LAYERS];
-    for p in points.iter().filter(|p| (low..high).contains(&p.z)) {
-        let k = (((p.z - low) / layer) as usize).min(AXIS_LEAN_LAYERS - 1);
-        layers[k].0.push(p.x);
-        layers[k].1.push(p.y);
-    }
-    let centres: Vec<Vec3> = layers
-        .iter_mut()
+    let layer_m = span / AXIS_LEAN_LAYERS as f32;
+    let centres: Vec<Vec3> = height_layers(points, low, high, AXIS_LEAN_LAYERS)
+        .iter()
         .enumerate()
-        .filter(|(_, (xs, _))| xs.len() >= AXIS_LEAN_MIN_POINTS)
-        .map(|(k, (xs, ys))| Vec3::new(median(xs), median(ys), low + (k as f32 + 0.5) * layer))
+        .filter(|(_, layer)| layer.len() >= AXIS_LEAN_MIN_POINTS)
+        .map(|(k, layer)| {
+            let mut xs: Vec<f32> = layer.iter().map(|p| p.x).collect();
+            let mut ys: Vec<f32> = layer.iter().map(|p| p.y).collect();
+            Vec3::new(
+                median(&mut xs),
+                median(&mut ys),
+                low + (k as f32 + 0.5) * layer_m,
+            )
+        })
         .collect();
     let (mut dx, mut dy) = (Vec::new(), Vec::new());
     for (i, a) in centres.iter().enumerate() {
