@@ -475,8 +475,9 @@ pub(crate) fn z_range<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> (f32, f
 /// The trunk's axis over the lowest [`AXIS_LEAN_SHARE`]
 /// ([`upright::axis_lean`]) measures the lean too, and the larger counts:
 /// the points' slope misses a stout trunk's lean when its slanted lowest end
-/// fills the band (tree1 turned 45° about +x: unflagged before, 42° now). On 24 clouds of
-/// `silva synth --scan tls` (seeds 1–24) and tree1, tree13 and tiny, each
+/// fills the band (tree1 turned 45° about +x: unflagged before, 42° now).
+/// On 24 clouds of `silva synth --scan tls` (seeds 1–24) and tree1, tree13
+/// and tiny, each
 /// turned both ways about x and y, `silva reconstruct` flagged 72 of 108
 /// turned by 30° (32 before), 105 of 108 by 45° (104; tiny, which goes to
 /// the airborne pipeline, is the rest) and 104 by 60° (104), and none
