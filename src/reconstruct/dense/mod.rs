@@ -457,7 +457,8 @@ pub fn reconstruct(
     interrupt.check("clean-up")?;
     let mut notes = Vec::new();
     let (points, terrain) = cleaned_points(cloud, params, &mut notes)?;
-    let mut graph = neighbour_graph(points, params, interrupt, &mut notes)?;
+    let on_ground = terrain.is_some();
+    let mut graph = neighbour_graph(points, on_ground, params, interrupt, &mut notes)?;
     let (sources, root) = trunk_base(&graph.points, graph.bin_m, terrain.as_ref());
     let sections = cross_sections(&mut graph, &sources, root, params, interrupt)?;
     // Express everything relative to the trunk base: the anchor carries the
@@ -538,9 +539,11 @@ struct NeighbourGraph {
 }
 
 /// Step 2, first half: the k-nearest-neighbour graph, made connected (see
-/// [`connect`]); then the checks that the points can be a tree.
+/// [`connect`]); then the checks that the points can be a tree. `on_ground`:
+/// step 0 found ground under them.
 fn neighbour_graph(
     points: Vec<Vec3>,
+    on_ground: bool,
     params: &Params,
     interrupt: &Interrupt,
     notes: &mut Vec<String>,
@@ -568,12 +571,18 @@ fn neighbour_graph(
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
     // The trunk tests name the axis that is up, so their error comes before
     // the spreads' and the lean's (a tree lying on its side leans ~90°).
+    // Ground found under the tree already shows that +z is up, give or take
+    // the terrain's slope, which its note states: a plot scan turned by 45°
+    // keeps its trunk across one end of the cloud once its ground is gone,
+    // and the side test would ask for a turn by 90°.
     let upright = super::check_upright(&points, base_z, top_z);
-    super::upright::check_stands_on_its_trunk(
-        &points,
-        (STEM_LINK_SPACINGS * spacing).max(0.02),
-        super::upright::DENSE_SLICES,
-    )?;
+    if !on_ground {
+        super::upright::check_stands_on_its_trunk(
+            &points,
+            (STEM_LINK_SPACINGS * spacing).max(0.02),
+            super::upright::DENSE_SLICES,
+        )?;
+    }
     notes.extend(upright?);
     Ok(NeighbourGraph {
         points,
