@@ -349,6 +349,28 @@ fn the_root_stands_on_the_trunk_axis_of_a_one_sided_scan() {
     }
 }
 
+/// A sparse scan (30 points/m² of bark) rings the stem's foot only in a
+/// slice taller than 10 cm: the root of poplar 3 sat 0.30 m off the true
+/// base with the 10 cm slice alone.
+#[test]
+fn the_root_of_a_sparse_scan_stands_on_the_trunk_axis() {
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let truth = generate(
+        &TreeParams::preset(Species::Poplar),
+        3,
+        silva::Anchor::default(),
+    );
+    let sparse = TlsOptions {
+        points_per_m2: 30.0,
+        ..TlsOptions::default()
+    };
+    let tree = reconstruct(&simulate_tls(&truth, &sparse, 3), &dense()).unwrap();
+    let off = (tree.skeleton.anchor().origin - truth.anchor().origin)
+        .truncate()
+        .length();
+    assert!(off < 0.05, "root {off:.3} m off the true base");
+}
+
 /// A Weber–Penn tree of every species, scanned from four positions and
 /// turned upside down, is rejected in the automatic mode (the pine's then
 /// goes to the airborne pipeline, whose trunk test sees no trunk at the
