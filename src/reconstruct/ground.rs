@@ -344,26 +344,35 @@ pub fn split_ground(cloud: &PointCloud) -> GroundSplit {
 /// Fits the terrain to the lowest point of each grid cell (module docs).
 /// `None` when there are fewer than three cells to fit a plane to.
 pub(crate) fn fit_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
-    fit_terrain_from(points, SEED_SHARES[0])
+    let grid = LowestPoints::of(points)?;
+    Some(completed(points, grid.terrain_cells(SEED_SHARES[0])?))
 }
 
 /// The first terrain that [`Terrain::is_ground`] accepts, its plane fit
-/// seeded by each of [`SEED_SHARES`] in turn.
+/// seeded by each of [`SEED_SHARES`] in turn. The grid is built once, and
+/// a seed whose surface has too few cells to be accepted
+/// ([`TerrainCells::may_be_ground`]) costs no pass over the points: a
+/// segmented tree, which has no ground, tries all three.
 fn ground_terrain(points: &[glam::Vec3]) -> Option<Terrain> {
-    SEED_SHARES
-        .iter()
-        .find_map(|&share| fit_terrain_from(points, share).filter(Terrain::is_ground))
+    let grid = LowestPoints::of(points)?;
+    SEED_SHARES.iter().find_map(|&share| {
+        let cells = grid.terrain_cells(share)?;
+        cells
+            .may_be_ground()
+            .then(|| completed(points, cells))
+            .filter(Terrain::is_ground)
+    })
 }
 
-/// [`fit_terrain`] with its plane fit seeded by the lowest `seed_share` of
-/// the cells ([`fit_robust_plane`]).
-fn fit_terrain_from(points: &[glam::Vec3], seed_share: f64) -> Option<Terrain> {
+/// The terrain on `cells`: its open cells, ground surface and the points
+/// far below it, measured over `points`.
+fn completed(points: &[glam::Vec3], cells: TerrainCells) -> Terrain {
     let TerrainCells {
         origin,
         occupied,
         plane,
         residual_m,
-    } = terrain_cells(points, seed_share)?;
+    } = cells;
     let bare_cells = count_bare_cells(points, origin, plane, &residual_m);
     let surface_m = mean_ground(points, origin, plane, &residual_m);
     let mut terrain = Terrain {
@@ -382,7 +391,7 @@ fn fit_terrain_from(points: &[glam::Vec3], seed_share: f64) -> Option<Terrain> {
             .filter(|p| p.z - terrain.height_at(p.x, p.y) < -BELOW_GROUND_NOISE_M)
             .count();
     }
-    Some(terrain)
+    terrain
 }
 
 /// The first steps of [`fit_terrain`]: the plane through the grid cells'
@@ -396,34 +405,64 @@ struct TerrainCells {
     residual_m: HashMap<(i32, i32), f32>,
 }
 
-fn terrain_cells(points: &[glam::Vec3], seed_share: f64) -> Option<TerrainCells> {
-    let origin = points
-        .iter()
-        .fold(Vec2::splat(f32::INFINITY), |o, p| o.min(p.truncate()));
-    let cells = cell_stats(points, origin);
-    if cells.len() < 3 {
-        return None;
+impl TerrainCells {
+    /// False when [`Terrain::covers_open_ground`] must fail whatever the
+    /// points above the cells: its open cells are terrain cells.
+    fn may_be_ground(&self) -> bool {
+        let terrain = self.residual_m.len();
+        // As `Terrain::cell_share` computes it, so that the bound is exact.
+        let share = terrain as f32 / self.occupied.max(1) as f32;
+        terrain >= 3
+            && (f64::from(share) >= MIN_GROUND_CELL_SHARE || terrain >= MIN_OPEN_GROUND_CELLS)
     }
-    // Sorted by cell, so that the plane's sums do not depend on the hash
-    // map's order.
-    let mut candidates: Vec<((i32, i32), DVec3)> = cells
-        .into_iter()
-        .map(|(k, c)| (k, c.low.as_dvec3()))
-        .collect();
-    candidates.sort_by_key(|(k, _)| *k);
-    let (plane, inlier) = fit_robust_plane(&candidates, seed_share)?;
-    let residual_m: HashMap<(i32, i32), f32> = candidates
-        .iter()
-        .zip(&inlier)
-        .filter(|(_, keep)| **keep)
-        .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
-        .collect();
-    Some(TerrainCells {
-        origin,
-        occupied: candidates.len(),
-        plane,
-        residual_m: largest_patch(residual_m),
-    })
+}
+
+/// The grid of [`fit_terrain`]: each occupied cell's lowest point, the
+/// terrain candidates.
+struct LowestPoints {
+    origin: Vec2,
+    /// Per occupied cell, its lowest point, sorted by cell so that the
+    /// plane's sums do not depend on the hash map's order.
+    candidates: Vec<((i32, i32), DVec3)>,
+}
+
+impl LowestPoints {
+    /// `None` when fewer than three cells hold a point.
+    fn of(points: &[glam::Vec3]) -> Option<LowestPoints> {
+        let origin = points
+            .iter()
+            .fold(Vec2::splat(f32::INFINITY), |o, p| o.min(p.truncate()));
+        let cells = cell_stats(points, origin);
+        if cells.len() < 3 {
+            return None;
+        }
+        let mut candidates: Vec<((i32, i32), DVec3)> = cells
+            .into_iter()
+            .map(|(k, c)| (k, c.low.as_dvec3()))
+            .collect();
+        candidates.sort_by_key(|(k, _)| *k);
+        Some(LowestPoints { origin, candidates })
+    }
+
+    /// The plane through the candidates, seeded by their lowest
+    /// `seed_share` ([`fit_robust_plane`]), and the largest patch of cells
+    /// on it.
+    fn terrain_cells(&self, seed_share: f64) -> Option<TerrainCells> {
+        let candidates = &self.candidates;
+        let (plane, inlier) = fit_robust_plane(candidates, seed_share)?;
+        let residual_m: HashMap<(i32, i32), f32> = candidates
+            .iter()
+            .zip(&inlier)
+            .filter(|(_, keep)| **keep)
+            .map(|((k, p), _)| (*k, (p.z - eval_plane(plane, *p)) as f32))
+            .collect();
+        Some(TerrainCells {
+            origin: self.origin,
+            occupied: candidates.len(),
+            plane,
+            residual_m: largest_patch(residual_m),
+        })
+    }
 }
 
 /// [`Terrain::cell_share`] of the terrain that [`fit_terrain`] would fit,
@@ -431,7 +470,8 @@ fn terrain_cells(points: &[glam::Vec3], seed_share: f64) -> Option<TerrainCells>
 /// upper bound on the share of a terrain that [`Terrain::is_ground`]
 /// accepts, for tests that need ground over most of the cells.
 pub(crate) fn terrain_cell_share(points: &[glam::Vec3]) -> f32 {
-    terrain_cells(points, SEED_SHARES[0]).map_or(0.0, |c| {
+    let cells = LowestPoints::of(points).and_then(|grid| grid.terrain_cells(SEED_SHARES[0]));
+    cells.map_or(0.0, |c| {
         c.residual_m.len() as f32 / c.occupied.max(1) as f32
     })
 }
