@@ -74,7 +74,7 @@ impl Default for Params {
             slice_m: (1.0, 1.6),
             search_radius_m: 1.0,
             min_trunk_points: 30,
-            min_sectors: 4,
+            min_sectors: MIN_TRUNK_SECTORS,
             min_radius_m: 0.002,
             measured_radii: true,
             min_section_points: 3,
@@ -1098,6 +1098,17 @@ fn sectors_holding(points: &[Vec2], centre: Vec2, sectors: usize, min_points: u3
     }
     held.iter().filter(|&&n| n >= min_points).count() as u32
 }
+
+/// Fewest of [`trunk_sectors_seen`]'s 12 sectors a trunk circle's inliers
+/// must cover to count as a view of the trunk: a third of its girth, as a
+/// terrestrial scan from one side sees it. The fitted DBH
+/// ([`Params::min_sectors`]), the stem's sections and the trunk's foot all
+/// ask for it.
+pub(crate) const MIN_TRUNK_SECTORS: u32 = 4;
+
+/// The largest trunk radius a stem or foot circle is searched for, in
+/// metres (flared feet are wider than the stem above them).
+pub(crate) const MAX_TRUNK_RADIUS_M: f32 = 1.5;
 
 /// Sectors of 30° around a trunk circle's `centre` that hold at least two
 /// of its inliers: one stray return is no view of the bark. (With 300

@@ -45,7 +45,9 @@ use crate::reconstruct::ground::{
     BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, fit_terrain,
     terrain_cell_share,
 };
-use crate::reconstruct::radii::{circle_rms, median, robust_circle, sectors_seen};
+use crate::reconstruct::radii::{
+    MAX_TRUNK_RADIUS_M, circle_rms, median, robust_circle, sectors_seen,
+};
 
 /// Where the two slices of [`check_stands_on_its_trunk`] lie in a dense
 /// scan, as shares of the cloud's height from its lowest (and from its
@@ -96,9 +98,6 @@ const MIN_ARC_DEG: u32 = 120;
 
 /// Width of the bins in which [`MIN_ARC_DEG`] is counted, in degrees.
 const ARC_BIN_DEG: u32 = 5;
-
-/// The largest stem radius searched for, in metres.
-const MAX_STEM_RADIUS_M: f32 = 1.5;
 
 /// A stem near the top must be at least this thick (radius, metres) to
 /// count as a trunk: thicker than any twig at a crown's top.
@@ -568,7 +567,7 @@ pub(crate) fn lean(points: &[Vec3]) -> Vec2 {
 /// The radius of the circle that `piece` rings, if it is a ring: enough
 /// points on it, all round, close to the circle.
 fn ring_radius(piece: &[Vec2]) -> Option<f32> {
-    let (circle, inliers) = robust_circle(piece, MAX_STEM_RADIUS_M)?;
+    let (circle, inliers) = robust_circle(piece, MAX_TRUNK_RADIUS_M)?;
     let ring = inliers.len() >= MIN_RING_POINTS
         && arc_covered_deg(&inliers, circle.centre) >= MIN_ARC_DEG
         && circle_rms(&inliers, circle) <= 0.25 * circle.radius;

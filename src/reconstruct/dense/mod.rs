@@ -74,7 +74,9 @@ use glam::Vec3;
 
 use super::ReconstructError;
 use super::ground::{GroundMethod, Terrain, split_ground};
-use super::radii::{circle_rms, robust_circle, trunk_sectors_seen};
+use super::radii::{
+    MAX_TRUNK_RADIUS_M, MIN_TRUNK_SECTORS, circle_rms, robust_circle, trunk_sectors_seen,
+};
 use crate::cloud::PointCloud;
 use crate::cloud::clean::{occupied_voxels, voxel_downsample};
 use crate::interrupt::Interrupt;
@@ -106,17 +108,9 @@ const STEM_LINK_SPACINGS: f32 = 4.0;
 /// -> 0.007 m).
 const FOOT_SLICES_M: [f32; 3] = [0.1, 0.3, 0.5];
 
-/// The largest trunk radius at the foot [`foot_circle`] fits, in metres
-/// (flared feet are wider than the stem above).
-const MAX_FOOT_RADIUS_M: f32 = 1.5;
-
 /// Fewest inliers of the foot's circle ([`foot_circle`]): as for a
 /// section's circle fit in [`skeletonize`].
 const MIN_FOOT_INLIERS: usize = 12;
-
-/// Sectors (of 12) that the foot circle's inliers must cover: a third of
-/// the girth, as for the fitted DBH.
-const MIN_FOOT_SECTORS: u32 = 4;
 
 /// Largest RMS distance of the foot circle's inliers from it, as a share
 /// of its radius.
@@ -695,7 +689,7 @@ fn trunk_base(
 /// The centre of the circle fitted ([`robust_circle`]) to the points within
 /// the first of [`FOOT_SLICES_M`] of the lowest (`heights` as in
 /// [`trunk_base`]) where it is the trunk's: it holds half of them or more,
-/// as inliers over a third of its girth ([`MIN_FOOT_SECTORS`] of 12
+/// as inliers over a third of its girth ([`MIN_TRUNK_SECTORS`] of 12
 /// sectors) with an RMS of at most [`MAX_FOOT_RMS_SHARE`] of its radius,
 /// and at least [`MIN_FOOT_INLIERS`] of them.
 ///
@@ -721,10 +715,10 @@ fn foot_circle_within(points: &[Vec3], heights: &[f32], top: f32) -> Option<glam
         .filter(|&(_, &h)| h < top)
         .map(|(p, _)| p.truncate())
         .collect();
-    let (circle, inliers) = robust_circle(&foot, MAX_FOOT_RADIUS_M)?;
+    let (circle, inliers) = robust_circle(&foot, MAX_TRUNK_RADIUS_M)?;
     let trunk = inliers.len() >= MIN_FOOT_INLIERS
         && 2 * inliers.len() >= foot.len()
-        && trunk_sectors_seen(&inliers, circle.centre) >= MIN_FOOT_SECTORS
+        && trunk_sectors_seen(&inliers, circle.centre) >= MIN_TRUNK_SECTORS
         && circle_rms(&inliers, circle) <= MAX_FOOT_RMS_SHARE * circle.radius;
     trunk.then_some(circle.centre)
 }

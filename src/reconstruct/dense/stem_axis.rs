@@ -33,7 +33,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::reconstruct::radii::{
-    Circle, circle_from, circle_rms, robust_circle, trunk_sectors_seen,
+    Circle, MIN_TRUNK_SECTORS, circle_from, circle_rms, robust_circle, trunk_sectors_seen,
 };
 use crate::skeleton::{NodeId, Skeleton};
 use crate::spatial::PointIndex;
@@ -71,10 +71,6 @@ pub(super) struct StemRule {
     /// nodes, in metres.
     pub(super) fade_m: f32,
 }
-
-/// Sectors (of 12) around the fitted centre that must hold at least two
-/// inliers: a third of the girth, as for the fitted DBH.
-const MIN_SECTORS: u32 = 4;
 
 /// Inliers must lie within this share of the circle's radius (RMS).
 const MAX_RMS_SHARE: f32 = 0.1;
@@ -447,7 +443,7 @@ impl Slices<'_> {
             && circle.radius >= spread.max(rule.min_radius_m)
             && circle.centre.length() <= circle.radius
             && circle_rms(&inliers, circle) <= MAX_RMS_SHARE * circle.radius
-            && trunk_sectors_seen(&inliers, circle.centre) >= MIN_SECTORS;
+            && trunk_sectors_seen(&inliers, circle.centre) >= MIN_TRUNK_SECTORS;
         plausible.then(|| SliceFit {
             centre: centre + e1 * circle.centre.x + e2 * circle.centre.y,
             radius: circle.radius,
