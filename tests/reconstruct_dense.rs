@@ -863,6 +863,31 @@ fn a_plot_scan_with_its_ground_on_top_is_an_error() {
     }
 }
 
+/// A plot scan turned by 60° is too steep for the terrain grid to find its
+/// ground, and before the ground was looked for as a plane in 3D, oak 5 and
+/// pine 1 (4 m of ground) reconstructed without any note: no slope, no
+/// lean. Now the note gives the tilt and the direction that is up; upright,
+/// the same plots get no such note.
+#[test]
+fn a_plot_scan_turned_sixty_degrees_is_flagged_by_its_ground_plane() {
+    use silva::synth::Species;
+    for (species, seed) in [(Species::Oak, 5), (Species::Pine, 1)] {
+        let (_, scan) = plot_scan(species, seed, 4.0, 0.0);
+        let tilted = |cloud: &PointCloud| {
+            let tree = reconstruct(cloud, &Options::default()).unwrap();
+            tree.notes
+                .into_iter()
+                .find(|n| n.contains("looks tilted by"))
+        };
+        assert_eq!(tilted(&scan), None, "{species:?} {seed} upright");
+        let note = tilted(&turned_about_x(&scan, 60.0)).expect("a tilt note");
+        assert!(
+            note.contains("tilted by 60°") && note.contains("z axis points up"),
+            "{note}"
+        );
+    }
+}
+
 /// The default occluded scan of a synthetic Scots pine (the `silva eval
 /// --synthetic 20` seed 20): the skeleton's trunk chain zigzags out to
 /// pieces of bark, and its chord at breast height leans 26° where the

@@ -39,6 +39,7 @@ pub mod airborne;
 pub mod dense;
 mod error;
 pub mod ground;
+mod ground_plane;
 pub mod metrics;
 pub mod radii;
 mod upright;

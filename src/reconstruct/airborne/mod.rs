@@ -306,7 +306,9 @@ fn separated(
     if split.method == GroundMethod::None {
         let tree = &split.tree.points;
         notes.extend(
-            super::upright::seen_from_below(tree)
+            super::ground_plane::tilted_ground(tree)
+                .map(|g| g.note())
+                .or_else(|| super::upright::seen_from_below(tree))
                 .or_else(|| super::upright::trunk_on_top(tree))
                 .or_else(|| super::upright::seen_from_beside(tree)),
         );

@@ -967,7 +967,9 @@ fn require_points(found: usize) -> Result<(), ReconstructError> {
 /// ([`super::upright::check_ground_below`]). A surface the terrain fit finds with hardly
 /// anything standing on it is no ground under a tree but the tree itself,
 /// lying (or a tilted cloud's flat side): all points stay, for the upright
-/// checks to judge.
+/// checks to judge. Without ground, a plot scan turned too far for the
+/// terrain grid still shows its ground as a plane in 3D, and gets a note
+/// ([`super::ground_plane`]).
 fn without_ground(
     cloud: &PointCloud,
     notes: &mut Vec<String>,
@@ -978,6 +980,7 @@ fn without_ground(
     if split.method == GroundMethod::None
         || (split.method == GroundMethod::Geometry && nothing_stands)
     {
+        notes.extend(super::ground_plane::tilted_ground(&cloud.points).map(|g| g.note()));
         return Ok((cloud.points.clone(), None));
     }
     notes.push(split.note());
