@@ -23,7 +23,9 @@
 //! [`ReconstructError`] or a flagged best effort in [`Reconstruction::notes`].
 //! Both pipelines reject a cloud that is wide at the bottom and narrow at the
 //! top, and one whose thickest stem is near its top (module `upright`: a
-//! conifer or a columnar tree turned over is narrow at both ends).
+//! conifer or a columnar tree turned over is narrow at both ends), and note
+//! a cloud whose ground, found as a plane in 3D, tilts 45° or more (module
+//! `ground_plane`: a plot scan turned too far for the terrain grid).
 
 use std::borrow::Cow;
 
