@@ -196,8 +196,7 @@ fn every_nth(points: &[Vec3], max: usize) -> impl Iterator<Item = Vec3> + '_ {
 /// The plane (a point on it and its unit normal) through three sample
 /// points that holds the most of the scoring points within [`BAND_M`].
 fn best_hypothesis(sample: &[Vec3]) -> Option<(Vec3, Vec3)> {
-    let score_step = sample.len().div_ceil(MAX_SCORE_POINTS).max(1);
-    let scoring: Vec<Vec3> = sample.iter().copied().step_by(score_step).collect();
+    let scoring: Vec<Vec3> = every_nth(sample, MAX_SCORE_POINTS).collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x9e0_d15c);
     let mut best: Option<((Vec3, Vec3), usize)> = None;
     for _ in 0..HYPOTHESES {
