@@ -203,6 +203,12 @@ impl Terrain {
         (a.hypot(b)).atan().to_degrees() as f32
     }
 
+    /// Unit normal of the terrain's plane, pointing up.
+    pub fn up(&self) -> glam::Vec3 {
+        let [a, b, _] = self.plane;
+        DVec3::new(-a, -b, 1.0).normalize().as_vec3()
+    }
+
     /// Share of the occupied grid cells whose lowest point is terrain.
     pub fn cell_share(&self) -> f32 {
         let (occupied, terrain) = self.cells;
@@ -266,12 +272,14 @@ impl GroundSplit {
     /// the pipelines, which take +z as up, measure height and trunk base
     /// askew. A note and not an error: trees grow on hillsides.
     pub fn steep_note(&self) -> Option<String> {
-        let slope = self.terrain.as_ref()?.slope_deg();
+        let terrain = self.terrain.as_ref()?;
+        let slope = terrain.slope_deg();
         (slope >= STEEP_TERRAIN_DEG).then(|| {
             format!(
                 "the terrain slopes {slope:.0}°: steep ground, or a tilted cloud. silva takes +z \
-                 as up, as in a georeferenced clip; if the cloud is tilted, level it first, or \
-                 height and trunk base are measured askew"
+                 as up, as in a georeferenced clip; if the cloud is tilted, level it first ({}), \
+                 or height and trunk base are measured askew",
+                levelling_words(terrain.up())
             )
         })
     }
@@ -281,6 +289,36 @@ impl GroundSplit {
     pub fn ground_height_at(&self, x: f32, y: f32) -> Option<f32> {
         self.terrain.as_ref().map(|t| t.height_at(x, y))
     }
+}
+
+/// The turn that brings the direction `up` to +z, as most point cloud tools
+/// take a turn: an angle in degrees about a unit axis, right-handed. The
+/// axis is `up × z`, or +x when `up` points straight down.
+pub(crate) fn levelling_turn(up: glam::Vec3) -> (f32, glam::Vec3) {
+    let up = up.normalize_or(glam::Vec3::Z);
+    let degrees = up.dot(glam::Vec3::Z).clamp(-1.0, 1.0).acos().to_degrees();
+    let axis = up
+        .cross(glam::Vec3::Z)
+        .try_normalize()
+        .unwrap_or(glam::Vec3::X);
+    (degrees, axis)
+}
+
+/// [`levelling_turn`] in words ([`as_shown`]): "turn the cloud by 60°
+/// about the axis (1.00, 0.00, 0.00)".
+pub(crate) fn levelling_words(up: glam::Vec3) -> String {
+    let (degrees, axis) = levelling_turn(up);
+    let axis = as_shown(axis);
+    format!(
+        "turn the cloud by {degrees:.0}° about the axis ({:.2}, {:.2}, {:.2})",
+        axis.x, axis.y, axis.z
+    )
+}
+
+/// A direction rounded to the hundredths a note shows, without a sign on a
+/// zero (a note should not read "-0.00").
+pub(crate) fn as_shown(v: glam::Vec3) -> glam::Vec3 {
+    (v * 100.0).round() / 100.0 + glam::Vec3::ZERO
 }
 
 /// Splits a cloud into tree and ground points, by LAS class 2 when the cloud
@@ -814,5 +852,30 @@ mod tests {
         let slope = split.terrain.as_ref().expect("a terrain").slope_deg();
         assert!((slope - 35.0).abs() < 1.0, "slope {slope:.1}°");
         assert_eq!(split.tree.len(), 37, "the pole, and no ground");
+        // Rising along +x, the ground is levelled by turning it about +y.
+        let note = split.steep_note().expect("a steep note");
+        assert!(
+            note.contains("slopes 35°")
+                && note.contains("by 35° about the axis (0.00, 1.00, 0.00)"),
+            "{note}"
+        );
+    }
+
+    #[test]
+    fn the_levelling_turn_brings_up_to_z() {
+        for up in [
+            Vec3::new(0.0, -0.87, 0.5),
+            Vec3::new(0.3, 0.2, 0.9),
+            Vec3::new(0.0, 0.0, -1.0),
+            Vec3::Z,
+        ] {
+            let (degrees, axis) = levelling_turn(up);
+            let turned = glam::Quat::from_axis_angle(axis, degrees.to_radians()) * up.normalize();
+            assert!(turned.dot(Vec3::Z) > 0.9999, "{up} -> {turned}");
+        }
+        assert_eq!(
+            levelling_words(Vec3::Z),
+            "turn the cloud by 0° about the axis (1.00, 0.00, 0.00)"
+        );
     }
 }

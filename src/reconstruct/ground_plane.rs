@@ -97,28 +97,21 @@ pub(crate) struct GroundPlane {
 }
 
 impl GroundPlane {
-    /// The unit axis about which turning the cloud by
-    /// [`GroundPlane::tilt_deg`] (right-handed) brings
-    /// [`GroundPlane::up`] to +z: `up × z`, or +x when `up` points straight
-    /// down.
-    pub(crate) fn levelling_axis(&self) -> Vec3 {
-        self.up.cross(Vec3::Z).try_normalize().unwrap_or(Vec3::X)
-    }
-
     /// The note that tells a user the cloud looks tilted, and how to level
-    /// it: the turn, as an angle about an axis, that most point cloud tools
-    /// take.
+    /// it ([`super::ground::levelling_words`]).
     pub(crate) fn note(&self) -> String {
-        // Rounded to the hundredths shown, without a sign on zero.
-        let shown = |v: Vec3| (v * 100.0).round() / 100.0 + Vec3::ZERO;
-        let (up, axis) = (shown(self.up), shown(self.levelling_axis()));
+        let up = super::ground::as_shown(self.up);
         format!(
             "the cloud looks tilted by {:.0}°: a flat surface covering {:.0} m², with the \
              tree standing on it as on ground, faces ({:.2}, {:.2}, {:.2}) rather than up \
-             (silva assumes the z axis points up; ground that steep is rare); turn the \
-             cloud by {:.0}° about the axis ({:.2}, {:.2}, {:.2}) to level it, or height, \
-             trunk base and lean are measured askew",
-            self.tilt_deg, self.area_m2, up.x, up.y, up.z, self.tilt_deg, axis.x, axis.y, axis.z
+             (silva assumes the z axis points up; ground that steep is rare); {} to level \
+             it, or height, trunk base and lean are measured askew",
+            self.tilt_deg,
+            self.area_m2,
+            up.x,
+            up.y,
+            up.z,
+            super::ground::levelling_words(self.up)
         )
     }
 }
@@ -342,9 +335,6 @@ mod tests {
         assert!(plane.up.dot(up) > 0.999, "{plane:?}");
         assert!(plane.area_m2 > 60.0, "{plane:?}");
         assert!(plane.note().contains("tilted by 60°"), "{}", plane.note());
-        let level =
-            glam::Quat::from_axis_angle(plane.levelling_axis(), plane.tilt_deg.to_radians());
-        assert!((level * plane.up).dot(Vec3::Z) > 0.9999, "{plane:?}");
         assert!(
             plane
                 .note()
