@@ -888,6 +888,27 @@ fn a_plot_scan_turned_sixty_degrees_is_flagged_by_its_ground_plane() {
     }
 }
 
+/// A plot scan turned so far that its ground's note names the tilt (the
+/// terrain's slope at 45°, the ground plane's at 60°) used to get a second
+/// angle from the lean check, measured askew: oak 1 turned 60° read "tilted
+/// by 60°" and "the trunk leans 30°", pine 1 turned 45° "slopes 45°" and
+/// "leans 54°". The trunk stands square to its ground, so the ground's
+/// note, which gives the turn that levels the cloud, is the only one.
+#[test]
+fn a_plot_scan_turned_with_its_ground_gets_one_tilt_angle() {
+    use silva::synth::Species;
+    for (species, degrees, tilt) in [
+        (Species::Oak, 60.0, "tilted by 60°"),
+        (Species::Pine, 45.0, "slopes 45°"),
+    ] {
+        let (_, scan) = plot_scan(species, 1, 4.0, 0.0);
+        let tree = reconstruct(&turned_about_x(&scan, degrees), &Options::default()).unwrap();
+        let said = |words: &str| tree.notes.iter().any(|n| n.contains(words));
+        assert!(said(tilt), "{species:?}: {:?}", tree.notes);
+        assert!(!said("trunk leans"), "{species:?}: {:?}", tree.notes);
+    }
+}
+
 /// The default occluded scan of a synthetic Scots pine (the `silva eval
 /// --synthetic 20` seed 20): the skeleton's trunk chain zigzags out to
 /// pieces of bark, and its chord at breast height leans 26° where the

@@ -412,7 +412,7 @@ fn round_share(points: &[Vec3]) -> f32 {
 }
 
 /// The points with `lo ≤ z ≤ hi`.
-fn slice(points: &[Vec3], lo: f32, hi: f32) -> Vec<Vec3> {
+pub(crate) fn slice(points: &[Vec3], lo: f32, hi: f32) -> Vec<Vec3> {
     points
         .iter()
         .copied()

@@ -479,10 +479,9 @@ pub fn reconstruct(
 ) -> Result<DenseOutput, ReconstructError> {
     interrupt.check("clean-up")?;
     let mut notes = Vec::new();
-    let (points, terrain) = cleaned_points(cloud, params, &mut notes)?;
-    let on_ground = terrain.is_some();
-    let mut graph = neighbour_graph(points, on_ground, params, interrupt, &mut notes)?;
-    let (sources, root, foot) = trunk_base(&graph.points, graph.bin_m, terrain.as_ref());
+    let (points, ground) = cleaned_points(cloud, params, &mut notes)?;
+    let mut graph = neighbour_graph(points, &ground, params, interrupt, &mut notes)?;
+    let (sources, root, foot) = trunk_base(&graph.points, graph.bin_m, ground.terrain.as_ref());
     let sections = cross_sections(&mut graph, &sources, root, params, interrupt)?;
     // Express everything relative to the trunk base: the anchor carries the
     // absolute position in f64, so the georeference stays exact.
@@ -548,14 +547,25 @@ fn rooted_on_foot(mut skeleton: Skeleton, shift: Vec3) -> Skeleton {
     skeleton
 }
 
+/// What step 0 learnt of the ground under the tree.
+struct GroundSeen {
+    /// The terrain, when the terrain fit found ground.
+    terrain: Option<Terrain>,
+    /// The ground's up direction when it tilts enough for a note: the
+    /// terrain's normal past [`super::ground::STEEP_TERRAIN_DEG`], or the
+    /// normal of a plane [`super::ground_plane`] found tilted. The lean
+    /// check ([`super::check_upright`]) measures the trunk against it.
+    tilted_up: Option<Vec3>,
+}
+
 /// Steps 0 and 1: the points without ground, de-duplicated and, for huge
-/// clouds, thinned (see [`thin`]); and the terrain, when there was ground.
+/// clouds, thinned (see [`thin`]); and what was seen of the ground.
 fn cleaned_points(
     cloud: &PointCloud,
     params: &Params,
     notes: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, Option<Terrain>), ReconstructError> {
-    let (points, terrain) = without_ground(cloud, notes)?;
+) -> Result<(Vec<Vec3>, GroundSeen), ReconstructError> {
+    let (points, ground) = without_ground(cloud, notes)?;
     let tree_points = points.len();
     let (points, thinned) = thin(points, params.duplicate_m, params.max_points);
     if let Some(voxel) = thinned {
@@ -566,7 +576,7 @@ fn cleaned_points(
         ));
     }
     require_points(points.len())?;
-    Ok((points, terrain))
+    Ok((points, ground))
 }
 
 /// The connected neighbourhood graph of a cloud, with the scales the later
@@ -582,11 +592,11 @@ struct NeighbourGraph {
 }
 
 /// Step 2, first half: the k-nearest-neighbour graph, made connected (see
-/// [`connect`]); then the checks that the points can be a tree. `on_ground`:
-/// step 0 found ground under them.
+/// [`connect`]); then the checks that the points can be a tree, against
+/// the ground step 0 found under them.
 fn neighbour_graph(
     points: Vec<Vec3>,
-    on_ground: bool,
+    ground: &GroundSeen,
     params: &Params,
     interrupt: &Interrupt,
     notes: &mut Vec<String>,
@@ -618,8 +628,8 @@ fn neighbour_graph(
     // the terrain's slope, which its note states: a plot scan turned by 45°
     // keeps its trunk across one end of the cloud once its ground is gone,
     // and the side test would ask for a turn by 90°.
-    let upright = super::check_upright(&points, base_z, top_z);
-    if !on_ground {
+    let upright = super::check_upright(&points, base_z, top_z, ground.tilted_up);
+    if ground.terrain.is_none() {
         super::upright::check_stands_on_its_trunk(
             &points,
             (STEM_LINK_SPACINGS * spacing).max(0.02),
@@ -962,8 +972,8 @@ fn require_points(found: usize) -> Result<(), ReconstructError> {
     Ok(())
 }
 
-/// The points that are not ground (step 0), and the terrain when there is
-/// ground, with notes on both; an error when the ground lies on top
+/// The points that are not ground (step 0), and what was seen of the
+/// ground ([`GroundSeen`]), with notes on both; an error when the ground lies on top
 /// ([`super::upright::check_ground_below`]). A surface the terrain fit finds with hardly
 /// anything standing on it is no ground under a tree but the tree itself,
 /// lying (or a tilted cloud's flat side): all points stay, for the upright
@@ -973,19 +983,31 @@ fn require_points(found: usize) -> Result<(), ReconstructError> {
 fn without_ground(
     cloud: &PointCloud,
     notes: &mut Vec<String>,
-) -> Result<(Vec<Vec3>, Option<Terrain>), ReconstructError> {
+) -> Result<(Vec<Vec3>, GroundSeen), ReconstructError> {
     let split = split_ground(cloud);
     super::upright::check_ground_below(&cloud.points, &split)?;
     let nothing_stands = split.tree.len() < super::MIN_POINTS;
     if split.method == GroundMethod::None
         || (split.method == GroundMethod::Geometry && nothing_stands)
     {
-        notes.extend(super::ground_plane::tilted_ground(&cloud.points).map(|g| g.note()));
-        return Ok((cloud.points.clone(), None));
+        let plane = super::ground_plane::tilted_ground(&cloud.points);
+        notes.extend(plane.map(|g| g.note()));
+        let ground = GroundSeen {
+            terrain: None,
+            tilted_up: plane.map(|g| g.up),
+        };
+        return Ok((cloud.points.clone(), ground));
     }
     notes.push(split.note());
-    notes.extend(split.steep_note());
-    Ok((split.tree.points, split.terrain))
+    let steep = split.steep_note();
+    let steep_terrain = split.terrain.as_ref().filter(|_| steep.is_some());
+    let tilted_up = steep_terrain.map(Terrain::up);
+    notes.extend(steep);
+    let ground = GroundSeen {
+        terrain: split.terrain,
+        tilted_up,
+    };
+    Ok((split.tree.points, ground))
 }
 
 /// An undirected graph edge: two point indices and the length in metres.
