@@ -909,6 +909,33 @@ fn a_plot_scan_turned_with_its_ground_gets_one_tilt_angle() {
     }
 }
 
+/// A plot scan turned 60° stands nearer to its side than upright, and its
+/// ground, at one side end, rejects it as lying on that side. The error
+/// used to ask for the turn that brings that side's axis up, 90° where the
+/// cloud is turned 60°; it now gives the ground plane's tilt and the turn
+/// that levels it. Turned 90°, it names the axis that is up, as before.
+#[test]
+fn a_plot_scan_turned_sixty_degrees_onto_a_side_is_told_the_turn_that_levels_it() {
+    let (_, scan) = plot_scan(silva::synth::Species::Poplar, 2, 4.0, 0.0);
+    let error = |degrees: f32| {
+        reconstruct(&turned_about_x(&scan, degrees), &Options::default())
+            .map(|tree| tree.notes)
+            .expect_err("rejected")
+            .to_string()
+    };
+    let e = error(60.0);
+    assert!(
+        e.contains("tilted by 60°")
+            && e.contains("turn the cloud by 60° about the axis (-1.00, 0.00, 0.00) to level it"),
+        "{e}"
+    );
+    let e = error(90.0);
+    assert!(
+        e.contains("onto its side") && e.contains("turn the cloud so that −y becomes +z"),
+        "{e}"
+    );
+}
+
 /// The default occluded scan of a synthetic Scots pine (the `silva eval
 /// --synthetic 20` seed 20): the skeleton's trunk chain zigzags out to
 /// pieces of bark, and its chord at breast height leans 26° where the

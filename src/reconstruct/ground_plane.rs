@@ -127,8 +127,8 @@ pub(crate) fn tilted_ground(points: &[Vec3]) -> Option<GroundPlane> {
 }
 
 /// The flat surface of `points` holding the most of them, when it is
-/// large, filled, and the rest stand on one side of it.
-fn ground_plane(points: &[Vec3]) -> Option<GroundPlane> {
+/// large, filled, and the rest stand on one side of it, however it tilts.
+pub(crate) fn ground_plane(points: &[Vec3]) -> Option<GroundPlane> {
     let sample: Vec<Vec3> = every_nth(points, MAX_SAMPLE_POINTS)
         .filter(|p| p.is_finite())
         .collect();

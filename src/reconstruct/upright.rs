@@ -42,9 +42,10 @@ use glam::{Vec2, Vec3};
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
 use crate::reconstruct::ground::{
-    BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, fit_terrain,
-    terrain_cell_share,
+    BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, as_shown,
+    fit_terrain, levelling_words, terrain_cell_share,
 };
+use crate::reconstruct::ground_plane::GroundPlane;
 use crate::reconstruct::radii::{
     MAX_TRUNK_RADIUS_M, circle_rms, median, robust_circle, sectors_seen,
 };
@@ -735,6 +736,10 @@ const MAX_SIDEWAYS_POINTS: usize = 200_000;
 /// `bottom_share` (the upright fit's) is lower by
 /// [`SIDE_GROUND_MARGIN`]. Turns up to 45° leave the ground below, where
 /// the upright fit finds it sloping ([`super::ground::STEEP_TERRAIN_DEG`]).
+/// A cloud turned only part of the way onto a side (60–75°: 29 of the 64
+/// plot scans turned 60° about x or y, `silva synth --scan tls
+/// --ground-radius 4`, four species, seeds 1–8) is told its tilt and the
+/// turn that levels it ([`partly_turned`]) instead of the axis to bring up.
 fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), ReconstructError> {
     // No side can beat ground under every cell of the bottom by the margin
     // (an airborne clip with its ground, the inventory's usual input).
@@ -757,18 +762,56 @@ fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), Reconst
         }
     });
     if share >= MIN_SIDE_GROUND_SHARE && share > bottom_share + SIDE_GROUND_MARGIN {
-        return Err(ReconstructError::Degenerate(format!(
-            "the cloud looks tilted onto its side: a flat surface covers {:.0} % of its {} \
-             end, as ground would if {} pointed up, and only {:.0} % of its bottom (turn the \
-             cloud so that {} becomes +z; a y-up export needs (x, y, z) → (x, −z, y))",
+        let found = format!(
+            "a flat surface covers {:.0} % of its {} end, as ground would if {} pointed up, and \
+             only {:.0} % of its bottom",
             share * 100.0,
             side.base,
             side.up,
             bottom_share * 100.0,
-            side.up
-        )));
+        );
+        return Err(ReconstructError::Degenerate(
+            match partly_turned(points, side) {
+                Some(plane) => format!(
+                    "the cloud looks tilted by {:.0}°: {found}; as a plane it faces ({:.2}, {:.2}, \
+                 {:.2}) ({} to level it)",
+                    plane.tilt_deg,
+                    as_shown(plane.up).x,
+                    as_shown(plane.up).y,
+                    as_shown(plane.up).z,
+                    levelling_words(plane.up)
+                ),
+                None => format!(
+                    "the cloud looks tilted onto its side: {found} (turn the cloud so that {} becomes \
+                 +z; a y-up export needs (x, y, z) → (x, −z, y))",
+                    side.up
+                ),
+            },
+        ));
     }
     Ok(())
+}
+
+/// A cloud turned this far from upright (degrees) or farther lies on its
+/// side, and [`check_ground_beside`] names the axis that is up.
+const ON_ITS_SIDE_DEG: f32 = 80.0;
+
+/// The ground plane ([`super::ground_plane::ground_plane`]) of a cloud
+/// whose ground [`check_ground_beside`] found at `side`'s base end, when
+/// the plane faces that side (within 45° of its up axis) and tilts less
+/// than [`ON_ITS_SIDE_DEG`]: the cloud was turned part of the way onto that
+/// side, and the plane's normal tells how far. Plot scans turned 60° lie
+/// nearer to their side than to upright; asked to turn +x up, a user would
+/// have turned them 90°.
+fn partly_turned(points: &[Vec3], side: &Side) -> Option<GroundPlane> {
+    let side_up = Vec3::new(
+        (side.turn)(Vec3::X).z,
+        (side.turn)(Vec3::Y).z,
+        (side.turn)(Vec3::Z).z,
+    );
+    super::ground_plane::ground_plane(points).filter(|plane| {
+        plane.up.angle_between(side_up).to_degrees() <= 45.0 && plane.tilt_deg < ON_ITS_SIDE_DEG
+    })
 }
 
 /// The share of a side's grid cells whose lowest point is ground from which
