@@ -100,19 +100,22 @@ impl GroundPlane {
     /// The note that tells a user the cloud looks tilted, and how to level
     /// it ([`super::ground::levelling_words`]).
     pub(crate) fn note(&self) -> String {
-        let up = super::ground::as_shown(self.up);
         format!(
             "the cloud looks tilted by {:.0}°: a flat surface covering {:.0} m², with the \
-             tree standing on it as on ground, faces ({:.2}, {:.2}, {:.2}) rather than up \
-             (silva assumes the z axis points up; ground that steep is rare); {} to level \
-             it, or height, trunk base and lean are measured askew",
+             tree standing on it as on ground, faces {} rather than up (silva assumes the z \
+             axis points up; ground that steep is rare); {} to level it, or height, trunk \
+             base and lean are measured askew",
             self.tilt_deg,
             self.area_m2,
-            up.x,
-            up.y,
-            up.z,
+            self.facing(),
             super::ground::levelling_words(self.up)
         )
+    }
+
+    /// The plane's up direction as notes show it: "(0.87, 0.00, 0.50)".
+    pub(crate) fn facing(&self) -> String {
+        let up = super::ground::as_shown(self.up);
+        format!("({:.2}, {:.2}, {:.2})", up.x, up.y, up.z)
     }
 }
 

@@ -42,8 +42,8 @@ use glam::{Vec2, Vec3};
 use crate::reconstruct::ReconstructError;
 use crate::reconstruct::dense::UnionFind;
 use crate::reconstruct::ground::{
-    BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, as_shown,
-    fit_terrain, levelling_words, terrain_cell_share,
+    BELOW_GROUND_NOISE_M, GROUND_TOLERANCE_M, GroundMethod, GroundSplit, Terrain, fit_terrain,
+    levelling_words, terrain_cell_share,
 };
 use crate::reconstruct::ground_plane::GroundPlane;
 use crate::reconstruct::radii::{
@@ -773,17 +773,15 @@ fn check_ground_beside(points: &[Vec3], bottom_share: f32) -> Result<(), Reconst
         return Err(ReconstructError::Degenerate(
             match partly_turned(points, side) {
                 Some(plane) => format!(
-                    "the cloud looks tilted by {:.0}°: {found}; as a plane it faces ({:.2}, {:.2}, \
-                 {:.2}) ({} to level it)",
+                    "the cloud looks tilted by {:.0}°: {found}; as a plane it faces {} ({} to \
+                     level it)",
                     plane.tilt_deg,
-                    as_shown(plane.up).x,
-                    as_shown(plane.up).y,
-                    as_shown(plane.up).z,
+                    plane.facing(),
                     levelling_words(plane.up)
                 ),
                 None => format!(
-                    "the cloud looks tilted onto its side: {found} (turn the cloud so that {} becomes \
-                 +z; a y-up export needs (x, y, z) → (x, −z, y))",
+                    "the cloud looks tilted onto its side: {found} (turn the cloud so that {} \
+                     becomes +z; a y-up export needs (x, y, z) → (x, −z, y))",
                     side.up
                 ),
             },
