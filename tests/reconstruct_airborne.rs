@@ -898,6 +898,27 @@ fn a_tree_on_a_steep_slope_keeps_its_ground_apart() {
     }
 }
 
+/// A clip turned 60° stands nearer to its side than upright; its ground,
+/// at a side end, rejects it as lying on that side. Its ground plane, whose
+/// returns scatter with the scanner's noise and carry no trunk's foot, now
+/// gives the tilt and the turn that levels it; before, the error asked for
+/// the 90° turn that brings the side's axis up.
+#[test]
+fn a_clip_turned_sixty_degrees_is_told_the_turn_that_levels_it() {
+    for (species, seed) in [(Species::Oak, 3), (Species::Pine, 1)] {
+        let cloud = simulate_als(&truth(species, seed), &AlsOptions::default(), seed);
+        let e = silva::reconstruct::reconstruct(&turned_about_x(&cloud, 60.0), &Options::default())
+            .map(|tree| tree.notes)
+            .expect_err("a clip turned 60°")
+            .to_string();
+        assert!(
+            e.contains("tilted by 60°")
+                && e.contains("turn the cloud by 60° about the axis (-1.00, 0.00, 0.00)"),
+            "{species:?}: {e}"
+        );
+    }
+}
+
 /// A clip exported with `y` or `x` up (a mesh tool's convention) lies on
 /// its side: its ground stands as a wall, which the terrain fit finds with
 /// that axis as up. The clip is rejected, and the error names the axis and

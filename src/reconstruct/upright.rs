@@ -807,7 +807,7 @@ fn partly_turned(points: &[Vec3], side: &Side) -> Option<GroundPlane> {
         (side.turn)(Vec3::Y).z,
         (side.turn)(Vec3::Z).z,
     );
-    super::ground_plane::ground_plane(points).filter(|plane| {
+    super::ground_plane::ground_plane(points, false).filter(|plane| {
         plane.up.angle_between(side_up).to_degrees() <= 45.0 && plane.tilt_deg < ON_ITS_SIDE_DEG
     })
 }
