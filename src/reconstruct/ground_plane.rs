@@ -216,7 +216,7 @@ fn every_nth(points: &[Vec3], max: usize) -> impl Iterator<Item = Vec3> + '_ {
 /// The plane (a point on it and its unit normal) through three sample
 /// points that holds the most of the scoring points within [`BAND_M`].
 fn best_hypothesis(sample: &[Vec3]) -> Option<(Vec3, Vec3)> {
-    let scoring: Vec<Vec3> = every_nth(sample, MAX_SCORE_POINTS).collect();
+    let scoring = Columns::new(every_nth(sample, MAX_SCORE_POINTS));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x9e0_d15c);
     let mut best: Option<((Vec3, Vec3), usize)> = None;
     for _ in 0..HYPOTHESES {
@@ -228,15 +228,52 @@ fn best_hypothesis(sample: &[Vec3]) -> Option<(Vec3, Vec3)> {
             continue;
         }
         let normal = normal.normalize();
-        let score = scoring
-            .iter()
-            .filter(|p| (**p - a).dot(normal).abs() <= BAND_M)
-            .count();
+        let score = scoring.in_band(a, normal);
         if best.is_none_or(|(_, s)| score > s) {
             best = Some(((a, normal), score));
         }
     }
     best.map(|(plane, _)| plane)
+}
+
+/// Points as three columns of coordinates: scoring a hypothesis then runs
+/// over plain `f32` slices, which the compiler vectorises. The scoring was
+/// the largest step of an airborne clip's reconstruction (15 % of `tiny`'s
+/// time, 1,000 hypotheses over up to 1,000 points).
+struct Columns {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+}
+
+impl Columns {
+    fn new(points: impl Iterator<Item = Vec3>) -> Self {
+        let mut columns = Self {
+            x: Vec::new(),
+            y: Vec::new(),
+            z: Vec::new(),
+        };
+        for p in points {
+            columns.x.push(p.x);
+            columns.y.push(p.y);
+            columns.z.push(p.z);
+        }
+        columns
+    }
+
+    /// How many points lie within [`BAND_M`] of the plane through `a` with
+    /// unit `normal`. The arithmetic is `(p - a).dot(normal)`'s, term by
+    /// term in the same order, so the count is the same to the last point.
+    fn in_band(&self, a: Vec3, normal: Vec3) -> usize {
+        let n = self.x.len();
+        let (x, y, z) = (&self.x[..n], &self.y[..n], &self.z[..n]);
+        let mut count = 0u32;
+        for i in 0..n {
+            let d = (x[i] - a.x) * normal.x + (y[i] - a.y) * normal.y + (z[i] - a.z) * normal.z;
+            count += u32::from(d.abs() <= BAND_M);
+        }
+        count as usize
+    }
 }
 
 /// The least-squares plane (centroid and the direction of least spread,

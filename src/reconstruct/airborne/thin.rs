@@ -62,14 +62,16 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
         return voxels.into_iter().map(|(_, p)| p).collect();
     };
     let masks = Masks::new();
+    let cells: Vec<usize> = voxels.iter().map(|(k, _)| black.cell(*k)).collect();
+    let faces = FACES.map(|f| black.offset(f));
     loop {
         let mut deleted = 0;
-        for face in FACES {
-            for (key, _) in &voxels {
-                if black.get(*key) && !black.get(*key + face) {
-                    let here = black.neighbourhood(*key);
+        for face in faces {
+            for &cell in &cells {
+                if black.is_black(cell) && !black.is_black(cell.wrapping_add_signed(face)) {
+                    let here = black.neighbourhood(cell);
                     if masks.is_deletable(here) {
-                        black.set(*key, false);
+                        black.black[cell] = false;
                         deleted += 1;
                     }
                 }
@@ -81,8 +83,9 @@ pub(super) fn thin(points: &[Vec3], voxel_m: f32) -> Vec<Vec3> {
     }
     voxels
         .into_iter()
-        .filter(|(k, _)| black.get(*k))
-        .map(|(_, p)| p)
+        .zip(cells)
+        .filter(|&(_, cell)| black.is_black(cell))
+        .map(|((_, p), _)| p)
         .collect()
 }
 
@@ -92,57 +95,64 @@ const MAX_GRID_CELLS: usize = 1 << 26;
 
 /// Black/white voxels in a dense grid over the occupied box: thinning looks
 /// up 27 neighbours per voxel and pass, which a hash map makes the slowest
-/// stage.
+/// stage. The box is padded by one white voxel on every side, so that every
+/// neighbour of an occupied voxel is a cell of the grid, a fixed step away
+/// in memory: the lookups need no bounds test.
 struct Occupancy {
+    /// Cells per axis, padding included.
     dims: IVec3,
     black: Vec<bool>,
+    /// Step in `black` to each position of the 3×3×3 neighbourhood.
+    steps: [isize; 27],
 }
 
 impl Occupancy {
-    /// The grid with `keys` (all non-negative) black; `None` when the box
-    /// would exceed [`MAX_GRID_CELLS`].
+    /// The grid with `keys` (all non-negative) black; `None` when the
+    /// occupied box would exceed [`MAX_GRID_CELLS`].
     fn new(keys: impl Iterator<Item = IVec3> + Clone) -> Option<Self> {
-        let dims = keys.clone().fold(IVec3::ZERO, IVec3::max) + 1;
-        let cells = (dims.x as usize)
-            .checked_mul(dims.y as usize)?
-            .checked_mul(dims.z as usize)?;
+        let occupied = keys.clone().fold(IVec3::ZERO, IVec3::max) + 1;
+        let cells = (occupied.x as usize)
+            .checked_mul(occupied.y as usize)?
+            .checked_mul(occupied.z as usize)?;
         if cells > MAX_GRID_CELLS {
             return None;
         }
+        let dims = occupied + 2;
         let mut grid = Self {
             dims,
-            black: vec![false; cells],
+            black: vec![false; dims.x as usize * dims.y as usize * dims.z as usize],
+            steps: [0; 27],
         };
+        grid.steps = OFFSETS.map(|o| grid.offset(o));
         for k in keys {
-            grid.set(k, true);
+            let cell = grid.cell(k);
+            grid.black[cell] = true;
         }
         Some(grid)
     }
 
-    fn index(&self, k: IVec3) -> Option<usize> {
-        let inside = k.cmpge(IVec3::ZERO).all() && k.cmplt(self.dims).all();
-        inside.then(|| {
-            (k.z as usize * self.dims.y as usize + k.y as usize) * self.dims.x as usize
-                + k.x as usize
-        })
+    /// The cell of the occupied voxel `k` (inside the occupied box).
+    fn cell(&self, k: IVec3) -> usize {
+        let k = k + 1;
+        (k.z as usize * self.dims.y as usize + k.y as usize) * self.dims.x as usize + k.x as usize
     }
 
-    fn get(&self, k: IVec3) -> bool {
-        self.index(k).is_some_and(|i| self.black[i])
+    /// The step in cells to the voxel `offset` away.
+    fn offset(&self, offset: IVec3) -> isize {
+        let (x, y) = (self.dims.x as isize, self.dims.y as isize);
+        (offset.z as isize * y + offset.y as isize) * x + offset.x as isize
     }
 
-    fn set(&mut self, k: IVec3, value: bool) {
-        if let Some(i) = self.index(k) {
-            self.black[i] = value;
-        }
+    fn is_black(&self, cell: usize) -> bool {
+        self.black[cell]
     }
 
-    /// The 3×3×3 neighbourhood of `k` as a 27-bit occupancy mask (centre
-    /// excluded).
-    fn neighbourhood(&self, k: IVec3) -> u32 {
+    /// The 3×3×3 neighbourhood of the occupied voxel at `cell` as a 27-bit
+    /// occupancy mask (centre excluded).
+    fn neighbourhood(&self, cell: usize) -> u32 {
         let mut mask = 0u32;
-        for (i, offset) in offsets().enumerate() {
-            if i != CENTRE && self.get(k + offset) {
+        for (i, &step) in self.steps.iter().enumerate() {
+            if i != CENTRE && self.black[cell.wrapping_add_signed(step)] {
                 mask |= 1 << i;
             }
         }
