@@ -330,7 +330,32 @@ pub fn remove_isolated_groups(
     cloud: &PointCloud,
     rule: &IsolatedGroups,
 ) -> Option<(PointCloud, Strays)> {
-    let groups = SparseCubes::new(&cloud.points, rule)?.isolated_groups();
+    remove_isolated_groups_measured(cloud, rule).0
+}
+
+/// [`remove_isolated_groups`], and the median spacing of `cloud`'s points
+/// ([`PointIndex::median_spacing`]) when the search measured it: a caller
+/// that needs the spacing of the same points later need not build a second
+/// kd-tree for it (on an airborne clip, the two cost a fifth of the
+/// reconstruction).
+pub fn remove_isolated_groups_measured(
+    cloud: &PointCloud,
+    rule: &IsolatedGroups,
+) -> (Option<(PointCloud, Strays)>, Option<f32>) {
+    let Some(search) = SparseCubes::new(&cloud.points, rule) else {
+        return (None, None);
+    };
+    (dropped_groups(cloud, rule, &search), search.spacing_m)
+}
+
+/// The isolated groups that [`remove_isolated_groups`] drops, and the
+/// cloud without them; `None` when none go.
+fn dropped_groups(
+    cloud: &PointCloud,
+    rule: &IsolatedGroups,
+    search: &SparseCubes,
+) -> Option<(PointCloud, Strays)> {
+    let groups = search.isolated_groups();
     let mut in_group = vec![false; cloud.len()];
     groups.iter().flatten().for_each(|&i| in_group[i] = true);
     let others = cloud.points.iter().zip(&in_group).filter(|(_, g)| !**g);
@@ -370,6 +395,8 @@ struct SparseCubes<'a> {
     /// Whether each point's cube holds at most `max_group` points.
     in_sparse_cube: Vec<bool>,
     index: PointIndex,
+    /// The points' median spacing, as the index measured it.
+    spacing_m: Option<f32>,
 }
 
 impl<'a> SparseCubes<'a> {
@@ -388,8 +415,10 @@ impl<'a> SparseCubes<'a> {
             return None;
         }
         let index = PointIndex::new(points);
-        let spacing = index.median_spacing(points).unwrap_or(0.0);
-        let gap_m = rule.min_gap_m.max(rule.gap_spacings * spacing);
+        let spacing_m = index.median_spacing(points);
+        let gap_m = rule
+            .min_gap_m
+            .max(rule.gap_spacings * spacing_m.unwrap_or(0.0));
         Some(Self {
             points,
             gap_m,
@@ -400,6 +429,7 @@ impl<'a> SparseCubes<'a> {
                 sparse
             },
             index,
+            spacing_m,
         })
     }
 
@@ -781,6 +811,25 @@ mod tests {
         let classes = out.classification.unwrap();
         let expected: Vec<u8> = (0..1000).chain([1003]).map(|i| i as u8).collect();
         assert_eq!(classes, expected);
+    }
+
+    /// The spacing handed on is the one a kd-tree over the same points
+    /// measures, and it is handed on only when the search built one.
+    #[test]
+    fn the_search_hands_on_the_spacing_it_measured() {
+        let mut pts = column();
+        pts.push(Vec3::new(0.0, 0.0, 35.0));
+        let (dropped, spacing) =
+            remove_isolated_groups_measured(&cloud(pts.clone()), &rule(8, 0.01));
+        assert_eq!(dropped.map(|(_, s)| s.above), Some(1));
+        let expected = PointIndex::new(&pts).median_spacing(&pts);
+        assert!(expected.is_some_and(|s| s > 0.0));
+        assert_eq!(spacing, expected);
+        // Both ends in full cubes: no kd-tree, no spacing.
+        assert_eq!(
+            remove_isolated_groups_measured(&cloud(column()), &rule(8, 0.01)),
+            (None, None)
+        );
     }
 
     #[test]

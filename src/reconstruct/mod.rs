@@ -213,13 +213,17 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     let interrupt = &opts.interrupt;
     check_points(cloud)?;
     interrupt.check("stray-return removal")?;
-    let (cleaned, noise_notes) = without_noise(cloud)?;
+    let Denoised {
+        cloud: cleaned,
+        notes: noise_notes,
+        spacing_m,
+    } = without_noise(cloud)?;
     let cloud = cleaned.as_ref();
     validate(cloud)?;
     interrupt.check("the choice of pipeline")?;
     let (mode, mode_reason, survey_note) = match opts.mode {
         Mode::Auto => {
-            let survey = survey(cloud);
+            let survey = survey_spaced(cloud, spacing_m);
             let (mode, reason) = survey.choose(&opts.auto);
             (mode, reason, survey.dense_without_trunk(mode, &opts.auto))
         }
@@ -251,13 +255,21 @@ pub fn reconstruct(cloud: &PointCloud, opts: &Options) -> Result<Reconstruction,
     })
 }
 
+/// A cloud as [`without_noise`] leaves it.
+struct Denoised<'a> {
+    /// Borrowed when nothing was dropped.
+    cloud: Cow<'a, PointCloud>,
+    /// A note on each kind of return dropped.
+    notes: Vec<String>,
+    /// The median spacing of `cloud`'s points, when the search for
+    /// isolated groups measured it.
+    spacing_m: Option<f32>,
+}
+
 /// `cloud` without the returns classified as noise, the strays far from
 /// the rest ([`STRAY_GAP_M`]) and the small isolated groups
-/// ([`ISOLATED_GROUPS`]), with a note on each kind dropped; borrowed when
-/// nothing was.
-fn without_noise(
-    cloud: &PointCloud,
-) -> Result<(Cow<'_, PointCloud>, Vec<String>), ReconstructError> {
+/// ([`ISOLATED_GROUPS`]).
+fn without_noise(cloud: &PointCloud) -> Result<Denoised<'_>, ReconstructError> {
     let mut notes = Vec::new();
     let mut cloud = Cow::Borrowed(cloud);
     if let Some((kept, noise)) = clean::remove_classified_noise(&cloud) {
@@ -270,12 +282,20 @@ fn without_noise(
         cloud = Cow::Owned(kept);
         strays = Some(far);
     }
-    if let Some((kept, isolated)) = clean::remove_isolated_groups(&cloud, &ISOLATED_GROUPS) {
+    let (isolated, mut spacing_m) =
+        clean::remove_isolated_groups_measured(&cloud, &ISOLATED_GROUPS);
+    if let Some((kept, isolated)) = isolated {
         cloud = Cow::Owned(kept);
         strays = Some(strays.map_or(isolated, |far: Strays| far.merged(isolated)));
+        // Measured on the points before the groups went.
+        spacing_m = None;
     }
     notes.extend(strays.map(strays_note));
-    Ok((cloud, notes))
+    Ok(Denoised {
+        cloud,
+        notes,
+        spacing_m,
+    })
 }
 
 /// The skeleton of `mode`'s pipeline (radii not yet final), the tree's
@@ -710,6 +730,13 @@ pub struct Survey {
 /// Measures the cloud for the automatic mode choice. Ground points (LAS class
 /// 2) are ignored when the cloud is classified.
 pub fn survey(cloud: &PointCloud) -> Survey {
+    survey_spaced(cloud, None)
+}
+
+/// [`survey`], with the median spacing of all of `cloud`'s points when it
+/// is known already (see [`clean::remove_isolated_groups_measured`]); it
+/// stands for the sample's when no ground point is left out.
+fn survey_spaced(cloud: &PointCloud, spacing_m: Option<f32>) -> Survey {
     let pts: Vec<Vec3> = match &cloud.classification {
         Some(class) => cloud
             .points
@@ -723,7 +750,7 @@ pub fn survey(cloud: &PointCloud) -> Survey {
     Survey {
         density_pts_per_m2: footprint_density(&pts),
         trunk_coverage: trunk_coverage(&pts),
-        spacing_m: sampled_spacing(&pts),
+        spacing_m: sampled_spacing(&pts, spacing_m.filter(|_| pts.len() == cloud.len())),
     }
 }
 
@@ -817,14 +844,17 @@ fn trunk_coverage(points: &[Vec3]) -> f32 {
     total / SLICES as f32
 }
 
-/// Median nearest-neighbour distance over up to 2,000 evenly picked points.
-fn sampled_spacing(points: &[Vec3]) -> f32 {
+/// Median nearest-neighbour distance over up to 2,000 evenly picked points,
+/// or the one `measured` on the same points already.
+fn sampled_spacing(points: &[Vec3], measured: Option<f32>) -> f32 {
     if points.len() < 2 || points.len() > 2_000_000 {
         return f32::NAN;
     }
-    crate::spatial::PointIndex::new(points)
-        .median_spacing(points)
-        .unwrap_or(f32::NAN)
+    measured.unwrap_or_else(|| {
+        crate::spatial::PointIndex::new(points)
+            .median_spacing(points)
+            .unwrap_or(f32::NAN)
+    })
 }
 
 #[cfg(test)]
