@@ -122,8 +122,9 @@ pub enum GroundMethod {
 pub struct Terrain {
     /// Plane `z = a·x + b·y + c` (relative metres), as `[a, b, c]`.
     plane: [f64; 3],
-    /// Per grid cell: the ground candidate's height minus the plane, for the
-    /// cells whose candidate is terrain.
+    /// Per grid cell with a terrain cell among its 3 × 3: the mean over
+    /// those of the ground candidate's height minus the plane
+    /// ([`local_means`]).
     residual_m: HashMap<(i32, i32), f32>,
     /// Grid origin (relative x, y of cell (0, 0)'s corner).
     origin: Vec2,
@@ -136,9 +137,9 @@ pub struct Terrain {
     /// only when the surface covers open ground), and all the points the
     /// surface was fitted to.
     deep_below: (usize, usize),
-    /// Per terrain cell: the mean height of its ground returns (those within
-    /// the ground tolerance of its lowest) minus the plane (see
-    /// [`Terrain::surface_at`]).
+    /// As `residual_m`, of each terrain cell's mean height of its ground
+    /// returns (those within the ground tolerance of its lowest) minus the
+    /// plane (see [`Terrain::surface_at`]).
     surface_m: HashMap<(i32, i32), f32>,
 }
 
@@ -155,20 +156,11 @@ impl Terrain {
         (a * f64::from(x) + b * f64::from(y) + c) as f32
     }
 
-    /// Mean of `per_cell` over the terrain cells around the one holding
-    /// `(x, y)` (3 × 3 cells); 0 when none of them is a terrain cell.
-    fn local_mean(&self, per_cell: &HashMap<(i32, i32), f32>, x: f32, y: f32) -> f32 {
-        let (i, j) = cell_of(self.origin, x, y);
-        let (mut sum, mut n) = (0.0f32, 0u32);
-        for di in -1..=1 {
-            for dj in -1..=1 {
-                if let Some(r) = per_cell.get(&(i.saturating_add(di), j.saturating_add(dj))) {
-                    sum += r;
-                    n += 1;
-                }
-            }
-        }
-        if n > 0 { sum / n as f32 } else { 0.0 }
+    /// The mean of the cell holding `(x, y)` in `means` ([`local_means`]);
+    /// 0 when no terrain cell lies around it.
+    fn local_mean(&self, means: &HashMap<(i32, i32), f32>, x: f32, y: f32) -> f32 {
+        let cell = cell_of(self.origin, x, y);
+        means.get(&cell).copied().unwrap_or(0.0)
     }
 
     /// Height of the ground surface at relative `(x, y)`, in relative
@@ -187,13 +179,7 @@ impl Terrain {
     /// terrain cell lies within one cell of `(x, y)`, where the surface
     /// would be the plane's extrapolation alone.
     pub fn surface_near(&self, x: f32, y: f32) -> Option<f32> {
-        let (i, j) = cell_of(self.origin, x, y);
-        let seen = (-1..=1).any(|di| {
-            (-1..=1).any(|dj| {
-                self.surface_m
-                    .contains_key(&(i.saturating_add(di), j.saturating_add(dj)))
-            })
-        });
+        let seen = self.surface_m.contains_key(&cell_of(self.origin, x, y));
         seen.then(|| self.surface_at(x, y))
     }
 
@@ -417,9 +403,9 @@ fn completed(points: &[glam::Vec3], cells: TerrainCells) -> Terrain {
         plane,
         bare_cells,
         deep_below: (0, points.len()),
-        surface_m,
+        surface_m: local_means(&surface_m),
         cells: (occupied, residual_m.len()),
-        residual_m,
+        residual_m: local_means(&residual_m),
         origin,
     };
     // Counted only where it can decide (a pass over every point).
@@ -430,6 +416,31 @@ fn completed(points: &[glam::Vec3], cells: TerrainCells) -> Terrain {
             .count();
     }
     terrain
+}
+
+/// Per cell with a cell of `per_cell` among its 3 × 3, the mean of
+/// `per_cell` over those (summed in row order, as one would around each
+/// query). Taken once per terrain, so that a height costs one lookup
+/// instead of nine: the heights of every point were a tenth of an airborne
+/// clip's reconstruction.
+fn local_means(per_cell: &HashMap<(i32, i32), f32>) -> HashMap<(i32, i32), f32> {
+    let around = |(i, j): (i32, i32)| {
+        (-1..=1).flat_map(move |di: i32| {
+            (-1..=1).map(move |dj: i32| (i.saturating_add(di), j.saturating_add(dj)))
+        })
+    };
+    let mut means = HashMap::with_capacity(4 * per_cell.len());
+    for &cell in per_cell.keys() {
+        for query in around(cell) {
+            means.entry(query).or_insert_with(|| {
+                let (sum, n) = around(query)
+                    .filter_map(|c| per_cell.get(&c))
+                    .fold((0.0f32, 0u32), |(sum, n), r| (sum + r, n + 1));
+                sum / n as f32
+            });
+        }
+    }
+    means
 }
 
 /// The first steps of [`fit_terrain`]: the plane through the grid cells'
