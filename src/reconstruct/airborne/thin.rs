@@ -108,19 +108,23 @@ struct Occupancy {
 
 impl Occupancy {
     /// The grid with `keys` (all non-negative) black; `None` when the
-    /// occupied box would exceed [`MAX_GRID_CELLS`].
+    /// grid, padding included, would exceed [`MAX_GRID_CELLS`].
     fn new(keys: impl Iterator<Item = IVec3> + Clone) -> Option<Self> {
+        let cells = |dims: IVec3| {
+            (dims.x as usize)
+                .checked_mul(dims.y as usize)?
+                .checked_mul(dims.z as usize)
+                .filter(|&n| n <= MAX_GRID_CELLS)
+        };
         let occupied = keys.clone().fold(IVec3::ZERO, IVec3::max) + 1;
-        let cells = (occupied.x as usize)
-            .checked_mul(occupied.y as usize)?
-            .checked_mul(occupied.z as usize)?;
-        if cells > MAX_GRID_CELLS {
-            return None;
-        }
+        // The occupied box first: it bounds each axis, so the padding
+        // cannot overflow. A thin box grows most with its padding (a
+        // column 1 × 1 × n voxels takes 9n cells).
+        cells(occupied)?;
         let dims = occupied + 2;
         let mut grid = Self {
             dims,
-            black: vec![false; dims.x as usize * dims.y as usize * dims.z as usize],
+            black: vec![false; cells(dims)?],
             steps: [0; 27],
         };
         grid.steps = OFFSETS.map(|o| grid.offset(o));
