@@ -6,6 +6,7 @@ use glam::{DVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use silva::cloud::PointCloud;
 use silva::reconstruct::{Mode, Options, reconstruct};
+use silva::spatial::PointIndex;
 
 fn y_tree_scan(spacing_m: f32) -> PointCloud {
     let fork = Vec3::new(0.0, 0.0, 3.0);
@@ -44,6 +45,29 @@ fn bench(c: &mut Criterion) {
     });
     c.bench_function("auto_survey", |b| {
         b.iter(|| silva::reconstruct::survey(&cloud))
+    });
+    bench_neighbour_lists(c, &cloud.points);
+}
+
+/// The dense graph's neighbour lists (k = 10 within 10 spacings), one
+/// kd-tree query per point against all points cell by cell.
+fn bench_neighbour_lists(c: &mut Criterion, points: &[Vec3]) {
+    let index = PointIndex::new(points);
+    let radius = 10.0 * index.median_spacing(points).unwrap_or(0.02);
+    c.bench_function("neighbours_per_point", |b| {
+        b.iter(|| {
+            points
+                .iter()
+                .map(|&p| index.nearest_k_within(p, 11, radius).len())
+                .sum::<usize>()
+        })
+    });
+    c.bench_function("neighbours_by_cell", |b| {
+        b.iter(|| {
+            let mut found = 0;
+            index.each_nearest_k_within(points, 10, radius, |_, near| found += near.len());
+            found
+        })
     });
 }
 
