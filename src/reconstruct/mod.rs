@@ -332,7 +332,7 @@ fn radius_params(radii: &radii::Params, mode: Mode) -> radii::Params {
 
 /// The crown's measures; the tree's height is raised by the expected gap
 /// between its highest return and its apex ([`metrics::apex_gap`]), with a
-/// note when there is one.
+/// note when it shows in centimetres ([`apex_note`]).
 ///
 /// A sparse scan from above rarely hits the apex itself, and a scan from
 /// the ground hardly sees the twigs at the top of the crown, which the
@@ -350,19 +350,29 @@ fn measure_crown(
 ) -> metrics::Crown {
     let mut crown = metrics::Crown::measure(skeleton, tree);
     let apex = metrics::apex_gap(&tree.points);
-    if apex.gap_m > 0.0 {
-        notes.push(format!(
-            "height: highest return {:.2} m plus {:.2} m expected gap to the apex of a {} top \
-             (± {:.2} m, one standard deviation: the gap of one tree scatters about its \
+    notes.extend(apex_note(crown.height_m, &apex));
+    crown.height_m += apex.gap_m;
+    crown
+}
+
+/// Gaps under this (metres) go without a note: the note gives centimetres,
+/// and a dense scan's gap of a few millimetres would read "plus 0.00 m
+/// (± 0.00 m)" (tree1's did).
+const NOTED_APEX_GAP_M: f32 = 0.005;
+
+/// What [`measure_crown`] says about the gap it added to the height of the
+/// highest return, `highest_m`.
+fn apex_note(highest_m: f32, apex: &metrics::ApexGap) -> Option<String> {
+    (apex.gap_m >= NOTED_APEX_GAP_M).then(|| {
+        format!(
+            "height: highest return {highest_m:.2} m plus {:.2} m expected gap to the apex of a \
+             {} top (± {:.2} m, one standard deviation: the gap of one tree scatters about its \
              expectation)",
-            crown.height_m,
             apex.gap_m,
             apex.top.name(),
             apex.scatter_m()
-        ));
-        crown.height_m += apex.gap_m;
-    }
-    crown
+        )
+    })
 }
 
 /// What [`reconstruct`] says about the points it dropped by their class.
@@ -869,6 +879,20 @@ mod tests {
                 Vec3::new(0.1 * a.cos(), 0.1 * a.sin(), height * i as f32 / 3000.0)
             })
             .collect()
+    }
+
+    #[test]
+    fn only_a_gap_that_shows_in_centimetres_gets_a_note() {
+        let gap = |gap_m| metrics::ApexGap {
+            gap_m,
+            top: metrics::CrownTop::Dome,
+        };
+        assert_eq!(apex_note(5.53, &gap(0.002)), None);
+        let note = apex_note(10.0, &gap(0.25)).expect("a noted gap");
+        assert!(
+            note.contains("highest return 10.00 m plus 0.25 m"),
+            "{note}"
+        );
     }
 
     fn dense(points: Vec<Vec3>) -> Result<Reconstruction, ReconstructError> {
