@@ -56,8 +56,8 @@ pub(super) struct Scratch {
     index: Vec<u32>,
     distance_sq: Vec<f32>,
     ranks: Vec<u64>,
-    /// The last answer, for the caller to read.
-    pub(super) nearest: Vec<Neighbour>,
+    /// The last point's answer.
+    nearest: Vec<Neighbour>,
 }
 
 /// Cells along one axis at most; past it the grid is not built.
@@ -121,6 +121,14 @@ impl CellGrid {
         Vec3::new(self.sorted[0][s], self.sorted[1][s], self.sorted[2][s])
     }
 
+    /// The cell whose key is `key` (the inverse of [`Self::key`]).
+    fn cell_at(&self, key: u64) -> [u64; 3] {
+        let [nx, ny, _] = self.dims;
+        [key % nx, key / nx % ny, key / nx / ny]
+    }
+
+    /// The key of cell `[x, y, z]`, `x + nx·(y + ny·z)`: keys order cells
+    /// by z, then y, then x, so a row of cells along x is one run.
     fn key(&self, [x, y, z]: [u64; 3]) -> u64 {
         x + self.dims[0] * (y + self.dims[1] * z)
     }
@@ -132,7 +140,7 @@ impl CellGrid {
             let key = *self.keys.get(start)?;
             let end = start + self.keys[start..].partition_point(|&k| k == key);
             let cell = Cell {
-                at: self.cell_of(self.position(start)),
+                at: self.cell_at(key),
                 points: start..end,
             };
             start = end;
