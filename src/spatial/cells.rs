@@ -220,9 +220,10 @@ impl CellGrid {
             let bound = answered.map_or(radius, |(q, reach)| {
                 ((reach + q.distance(p)) * (1.0 + 1e-5)).min(radius)
             });
-            scratch.rank_nearest((me, p), k, bound);
+            scratch.measure_from(p);
+            scratch.rank_nearest(me, k, bound);
             if scratch.nearest.len() < k && bound < radius {
-                scratch.rank_nearest((me, p), k, radius);
+                scratch.rank_nearest(me, k, radius);
             }
             let reach = (scratch.nearest.len() == k).then(|| scratch.nearest[k - 1].distance_sq);
             answered = reach.map(|d| (p, d.sqrt()));
@@ -238,17 +239,21 @@ impl CellGrid {
 }
 
 impl Scratch {
-    /// The `k` nearest gathered candidates within `within` of point `me` at
-    /// `p`, itself left out, closest first and equal distances by index,
-    /// into [`Self::nearest`].
-    fn rank_nearest(&mut self, (me, p): (u32, Vec3), k: usize, within: f32) {
-        let within_sq = within * within;
+    /// The squared distance from `p` to each gathered candidate.
+    fn measure_from(&mut self, p: Vec3) {
         self.distance_sq.clear();
         let coords = self.x.iter().zip(&self.y).zip(&self.z);
         self.distance_sq.extend(coords.map(|((&x, &y), &z)| {
             let (dx, dy, dz) = (x - p.x, y - p.y, z - p.z);
             dx * dx + dy * dy + dz * dz
         }));
+    }
+
+    /// The `k` nearest measured candidates within `within`, point `me`
+    /// left out, closest first and equal distances by index, into
+    /// [`Self::nearest`].
+    fn rank_nearest(&mut self, me: u32, k: usize, within: f32) {
+        let within_sq = within * within;
         // Branch-free compaction: every candidate is written, and the
         // length only grows past those that qualify (a branch per candidate
         // mispredicted about as often as it was taken).
