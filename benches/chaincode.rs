@@ -90,6 +90,12 @@ fn chaincode(c: &mut Criterion) {
     group.bench_function("decode_compressed", |b| {
         b.iter(|| decode_compressed(black_box(&packed), &limits).expect("valid"))
     });
+    // What an ingest pays for a bushy tree: every step prediction tried,
+    // then the smallest byte form chosen.
+    group.bench_function("encode", |b| {
+        b.iter(|| encode(black_box(&tree), &ChainOptions::default()).expect("encodable"))
+    });
+    group.bench_function("compress", |b| b.iter(|| black_box(&code).compress()));
     // The default picks a damped prediction for this skeleton; the same
     // skeleton with the paper's, to see what the scaling costs a decoder.
     let differential = ChainOptions {
