@@ -62,6 +62,43 @@ impl BitWriter {
     }
 }
 
+/// Where an encoder's bits go: a [`BitWriter`] keeps them, a
+/// [`BitCounter`] only counts them. The encoders compare several choices
+/// (step predictions, stream centres, radius layouts) by their size before
+/// writing one; counting is all that comparison needs.
+pub(crate) trait BitSink {
+    /// Writes the low `count` bits of `value` (`count` ≤ 64).
+    fn write(&mut self, value: u64, count: u32);
+    /// Total bits written so far.
+    fn bit_len(&self) -> u64;
+}
+
+impl BitSink for BitWriter {
+    fn write(&mut self, value: u64, count: u32) {
+        BitWriter::write(self, value, count);
+    }
+
+    fn bit_len(&self) -> u64 {
+        BitWriter::bit_len(self)
+    }
+}
+
+/// Counts the bits written to it and keeps none.
+#[derive(Debug, Default)]
+pub(crate) struct BitCounter {
+    bits: u64,
+}
+
+impl BitSink for BitCounter {
+    fn write(&mut self, _value: u64, count: u32) {
+        self.bits += u64::from(count);
+    }
+
+    fn bit_len(&self) -> u64 {
+        self.bits
+    }
+}
+
 /// Reads bits, most significant first.
 #[derive(Debug)]
 pub(crate) struct BitReader<'a> {

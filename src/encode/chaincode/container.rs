@@ -29,7 +29,7 @@
 //! interpolative code of the symbols' MTF cumulative sum (gaps ≤ 8) followed
 //! by that of the radius gaps' cumulative sum.
 
-use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
+use super::bits::{BitCounter, BitReader, BitSink, BitWriter, ByteCursor, put_varint};
 use super::radii::{GapMapping, branch_gaps, radii_from_gaps};
 use super::split::{Form, RadiusLayout};
 use super::{
@@ -515,7 +515,7 @@ pub(super) fn best_radius_mapping(gaps: &[i64]) -> (GapMapping, Vec<u64>) {
             let mapped: Vec<u64> = gaps.iter().map(|&g| mapping.apply(g)).collect();
             let max_gap = mapped.iter().copied().max().unwrap_or(0);
             let sums = cumulative(mapped.iter().copied());
-            let mut w = BitWriter::new();
+            let mut w = BitCounter::default();
             interpolative::encode_into(&mut w, &sums, max_gap);
             (mapping, sums, w.bit_len())
         })

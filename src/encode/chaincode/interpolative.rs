@@ -13,7 +13,7 @@
 //! The decoder knows the count `n` and the last value; the sequence starts
 //! from a virtual 0 before its first element.
 
-use super::bits::{BitReader, BitWriter};
+use super::bits::{BitReader, BitSink, BitWriter};
 
 /// Largest value a sequence may hold; keeps every range size in `u64`.
 pub(crate) const MAX_VALUE: u64 = 1 << 62;
@@ -38,7 +38,7 @@ pub fn bic_decode(bytes: &[u8], n: usize, last: u64, max_gap: u64) -> Option<Vec
     (!r.overrun()).then_some(out)
 }
 
-pub(crate) fn encode_into(w: &mut BitWriter, sorted: &[u64], max_gap: u64) {
+pub(crate) fn encode_into(w: &mut impl BitSink, sorted: &[u64], max_gap: u64) {
     let mut prev = 0;
     for &v in sorted {
         assert!(
@@ -57,7 +57,7 @@ pub(crate) fn encode_into(w: &mut BitWriter, sorted: &[u64], max_gap: u64) {
 }
 
 fn encode_range(
-    w: &mut BitWriter,
+    w: &mut impl BitSink,
     at: &impl Fn(usize) -> u64,
     lo_i: usize,
     hi_i: usize,
@@ -153,7 +153,7 @@ fn bounds(lo_i: usize, m: usize, hi_i: usize, lo_v: u64, hi_v: u64, max_gap: u64
 
 /// Writes `v < size` in a centred minimal binary code: `⌊log2 size⌋` bits for
 /// the `2^(k+1) - size` values around the middle, one more bit for the rest.
-fn write_centred(w: &mut BitWriter, v: u64, size: u64) {
+fn write_centred(w: &mut impl BitSink, v: u64, size: u64) {
     if size < 2 {
         return;
     }
@@ -201,6 +201,7 @@ fn read_centred(r: &mut BitReader<'_>, size: u64) -> u64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::bits::BitCounter;
     use super::*;
     use proptest::prelude::*;
 
@@ -248,6 +249,17 @@ mod tests {
             let bytes = bic_encode(&q, 8);
             let last = q.last().copied().unwrap_or(0);
             prop_assert_eq!(bic_decode(&bytes, q.len(), last, 8), Some(q));
+        }
+
+        #[test]
+        fn counting_the_bits_matches_writing_them(gaps in proptest::collection::vec(0u64..40, 0..400)) {
+            let q = cumsum(&gaps);
+            let max_gap = gaps.iter().copied().max().unwrap_or(0);
+            let mut written = BitWriter::new();
+            encode_into(&mut written, &q, max_gap);
+            let mut counted = BitCounter::default();
+            encode_into(&mut counted, &q, max_gap);
+            prop_assert_eq!(counted.bit_len(), written.bit_len());
         }
 
         #[test]

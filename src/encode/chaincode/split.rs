@@ -25,7 +25,7 @@
 //! Kind 3 relies on the canonical `0 3` pair: only where a fork marker could
 //! stand, so the decoder restores it without a structure item.
 
-use super::bits::{BitReader, BitWriter, ByteCursor, put_varint};
+use super::bits::{BitCounter, BitReader, BitSink, BitWriter, ByteCursor, put_varint};
 use super::container::{best_radius_mapping, cumulative, differences, unzigzag, zigzag};
 use super::dbf6::Terminator;
 use super::radii::{
@@ -116,7 +116,7 @@ fn push_moves(symbols: &mut Vec<u8>, c: [i64; 3]) {
 
 /// Writes one non-negative stream: `max_gap` and the last cumulative sum as
 /// varints into `meta`, the interpolative code into `bits`.
-fn put_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[u64]) {
+fn put_stream(meta: &mut Vec<u8>, bits: &mut impl BitSink, values: &[u64]) {
     let max_gap = values.iter().copied().max().unwrap_or(0);
     let sums = cumulative(values.iter().copied());
     put_varint(meta, max_gap);
@@ -131,11 +131,11 @@ const MAX_CENTRE: i64 = 3;
 /// not centred on 0 (laterals mostly grow upwards), so the stream stores a
 /// centre `c` in `-3..=3` (zigzagged, one byte) and codes `zigzag(v − c)`,
 /// with the `c` that codes shortest.
-fn put_centred_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, zigzagged: &[u64]) {
+fn put_centred_stream(meta: &mut Vec<u8>, bits: &mut impl BitSink, zigzagged: &[u64]) {
     let shifted =
         |c: i64| -> Vec<u64> { zigzagged.iter().map(|&z| zigzag(unzigzag(z) - c)).collect() };
     let cost = |values: &[u64]| {
-        let (mut m, mut b) = (Vec::new(), BitWriter::new());
+        let (mut m, mut b) = (Vec::new(), BitCounter::default());
         put_stream(&mut m, &mut b, values);
         m.len() as u64 * 8 + b.bit_len()
     };
@@ -311,7 +311,7 @@ pub(crate) fn build(code: &ChainCode, form: Form, radii: Option<RadiusLayout>) -
 pub(crate) fn correction_bits(code: &ChainCode) -> Option<u64> {
     let streams = split(code.symbols())?;
     let mut meta = Vec::new();
-    let mut bits = BitWriter::new();
+    let mut bits = BitCounter::default();
     put_corrections(&mut meta, &mut bits, &streams.corrections, Form::Kind3);
     Some(meta.len() as u64 * 8 + bits.bit_len())
 }
@@ -320,7 +320,7 @@ pub(crate) fn correction_bits(code: &ChainCode) -> Option<u64> {
 /// branch-first internodes, kind 2 does not.
 fn put_corrections(
     meta: &mut Vec<u8>,
-    bits: &mut BitWriter,
+    bits: &mut impl BitSink,
     corrections: &Corrections,
     form: Form,
 ) {
@@ -334,7 +334,7 @@ fn put_corrections(
 }
 
 /// Kind 2 structure: the items through BWT (virtual end marker) and MTF.
-fn put_structure_items(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]) {
+fn put_structure_items(meta: &mut Vec<u8>, bits: &mut impl BitSink, structure: &[u8]) {
     let (last, primary) = bwt::bwt_forward(structure, STRUCT_ALPHABET);
     let indices: Vec<u64> = mtf::mtf_forward(&last, STRUCT_ALPHABET)
         .into_iter()
@@ -351,7 +351,7 @@ fn put_structure_items(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8
 /// number of further laterals (its zero-length internodes). Coding which
 /// internodes are tips as a set of positions costs close to its order-0
 /// entropy, which BWT and MTF on the mixed items do not reach.
-fn put_structure_bits(meta: &mut Vec<u8>, bits: &mut BitWriter, structure: &[u8]) {
+fn put_structure_bits(meta: &mut Vec<u8>, bits: &mut impl BitSink, structure: &[u8]) {
     let leading = structure.iter().take_while(|&&i| i == S_MARKER).count();
     let mut tips = Vec::new();
     let mut forks = Vec::new();
@@ -411,7 +411,7 @@ impl RadiusStreams {
 
     /// The metadata and interpolative codes of one layout (without its
     /// layout byte).
-    fn put(&self, layout: RadiusLayout, meta: &mut Vec<u8>, bits: &mut BitWriter) {
+    fn put(&self, layout: RadiusLayout, meta: &mut Vec<u8>, bits: &mut impl BitSink) {
         let (first, second) = match layout {
             RadiusLayout::TipFirst => (&self.tips, &self.inner),
             RadiusLayout::ParentPredicted => {
@@ -432,7 +432,7 @@ impl RadiusStreams {
     /// on a tie.
     fn shortest(&self) -> RadiusLayout {
         let cost = |layout| {
-            let (mut m, mut b) = (Vec::new(), BitWriter::new());
+            let (mut m, mut b) = (Vec::new(), BitCounter::default());
             self.put(layout, &mut m, &mut b);
             m.len() as u64 * 8 + b.bit_len()
         };
@@ -445,7 +445,7 @@ impl RadiusStreams {
 
 /// A signed stream made non-negative by the shorter mapping (the mapping
 /// goes into `meta` before the stream's own metadata).
-fn put_signed_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
+fn put_signed_stream(meta: &mut Vec<u8>, bits: &mut impl BitSink, values: &[i64]) {
     let (mapping, _) = best_radius_mapping(values);
     put_mapping(meta, mapping);
     let mapped: Vec<u64> = values.iter().map(|&g| mapping.apply(g)).collect();
@@ -458,7 +458,7 @@ fn put_signed_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
 /// carry the pipe model's tip radius and most nodes their thickest child's:
 /// the flags code their positions close to the order-0 entropy, where one
 /// interpolative code over all values pays for every outlier's neighbours.
-fn put_escaped_stream(meta: &mut Vec<u8>, bits: &mut BitWriter, values: &[i64]) {
+fn put_escaped_stream(meta: &mut Vec<u8>, bits: &mut impl BitSink, values: &[i64]) {
     let mode = most_common(values);
     let flags: Vec<u64> = values.iter().map(|&v| u64::from(v != mode)).collect();
     let others: Vec<i64> = values.iter().copied().filter(|&v| v != mode).collect();
