@@ -201,7 +201,14 @@ impl Counts {
         for (_, new) in &regions {
             self.count_pairs(&ids[new.clone()], true, &mut touched);
         }
-        self.pairs.retain(|_, n| *n > 0);
+        // Only pairs whose count changed can have dropped to zero.
+        for &(a, b) in &touched {
+            if let Some(b) = b.checked_sub(1)
+                && self.pairs.get(&[a, b]) == Some(&0)
+            {
+                self.pairs.remove(&[a, b]);
+            }
+        }
         self.singles.resize(symbols.table.len(), 0);
         for &id in pattern {
             if symbols.table[id as usize].param.is_some() {
