@@ -89,9 +89,9 @@ pub fn bwt_inverse(last: &[u8], primary: usize, alphabet: usize) -> Option<Vec<u
 /// the pair (rank of the first `k`, rank of the next `k`), with two linear
 /// passes instead of a comparison sort: the suffixes in the order of their
 /// second halves are read off the previous round's order, then a stable
-/// counting sort by the first half's rank finishes the round. A chain code
-/// of 10,000 symbols takes some ten rounds, one per doubling of its
-/// longest repeat.
+/// counting sort by the first half's rank finishes the round. It stops
+/// once every rank is distinct: after about log2 of the longest repeated
+/// substring's length rounds.
 fn suffix_array(s: &[u8]) -> Vec<u32> {
     let n = s.len() + 1;
     // Rank 0 is the end marker; ranks stay below n.

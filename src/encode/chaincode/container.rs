@@ -210,7 +210,7 @@ impl ChainCode {
             let (last, _) = bwt::bwt_forward(&self.symbols, ALPHABET);
             let indices = mtf::mtf_forward(&last, ALPHABET);
             let code_sums = cumulative(indices.iter().map(|&i| u64::from(i)));
-            let mut w = BitWriter::new();
+            let mut w = BitCounter::default();
             interpolative::encode_into(&mut w, &code_sums, MAX_SYMBOL_GAP);
             let symbol_bits = w.bit_len();
             let payload_bits = (total.len() - header_bytes) as u64 * 8;
