@@ -236,6 +236,31 @@ pub struct Params {
     /// precision ≥ 0.99 as before. tree1 within 2 cm 83.9 → 83.4 %, tree13
     /// 70.4 → 69.8 %. At 2 bin widths (main extension only) the length
     /// falls to 1.15 but tree13 loses 4 points within 2 cm.
+    ///
+    /// Re-measured at 1 / 1.5 / 2 / 3 bin widths (2026-12-06, release,
+    /// `DATA=/work/shared/data cargo run --release --example dense_sweep --
+    /// strand_reach_bins 1 1.5 2 3`). The 20 clean scans: median recall
+    /// 0.9963 / 0.9963 / 0.9962 / 0.9962, precision 0.9968 / 0.9967 / 0.9967
+    /// / 0.9966, branch count / true 1.90 / 1.82 / 1.68 / 1.36, 15 of 20
+    /// meeting both 0.99 at every value. tree1 within 2 cm 83.7 / 82.6 /
+    /// 81.5 / 78.0 %, tree13 70.6 / 66.9 / 65.1 / 60.7 %; tree13's LsJSON
+    /// 63.1 / 57.8 / 53.9 / 48.3 KB. The occluded scans (`OCCLUDED=1`) at
+    /// 1 → 2: recall 0.8430 → 0.8410, precision 0.9512 → 0.9479, branch
+    /// count 1.99 → 1.49.
+    ///
+    /// What 1 keeps and 2 drops is mostly the far side of limbs 2–10 cm
+    /// thick. On the clean oak s1 (`silva synth --species oak --seed 1
+    /// --scan tls --density 1000 --no-occlusion`; branch count 4.6 times
+    /// the truth's), `tools/dense_strands.py` finds 1,642 laterals shorter
+    /// than 0.5 m (345 m) on the true branch they fork from: 929 on wood of
+    /// 2–5 cm radius, their tips a median 4.6 cm off its axis, and 423 on
+    /// 5–10 cm wood, 8.0 cm off. A bin cuts such a limb's bark into two arcs
+    /// that the section links do not join, and each arc grows a chain. A
+    /// trial (not kept) that moved the branch's nodes halfway to the strands
+    /// dropped at 2 won back part of the fit (tree1 83.1 %, tree13 67.3 %),
+    /// but on the occluded scans recall still fell to 0.8405 and precision
+    /// to 0.9484. So the value stays 1. The fix left to try is to join the
+    /// two arcs into one section before the chains form.
     pub strand_reach_bins: f32,
     /// A short run of sections (at most [`Params::detour_max_nodes`])
     /// between two thick stem rings (spread of at least

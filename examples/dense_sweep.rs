@@ -1,0 +1,154 @@
+//! One setting of the dense pipeline against the synthetic truths and the
+//! real clouds, value by value:
+//! `cargo run --release --example dense_sweep -- PARAM VALUE…`.
+//!
+//! `PARAM` is a field of `silva::reconstruct::dense::Params` among
+//! `strand_reach_bins`, `spur_spread_bins`, `spur_reach_bins` and
+//! `min_branch_bins`. For each value, reconstructs the synthetic TLS trees
+//! of `silva eval --synthetic N --scan tls --density 1000 --no-occlusion`
+//! (N from `N`, default 20; with `OCCLUDED=1` the default occluded scans of
+//! `--scan tls`) with every other setting at its default, through
+//! `silva::eval::run::evaluate` as `silva eval` does, and prints the median
+//! recall, precision, branch count and length over the truth's, the mean
+//! skeleton distance, and how many trees meet recall and precision ≥ 0.99
+//! at 0.1 m. With `DATA=DIR`, also every cloud named `tree*.xyz` in DIR
+//! (e.g. `/work/shared/data`): its cylinder fit (points within 2 and 5 cm,
+//! supported share), branches, internodes, chain-code bytes per internode
+//! at r = 5 and LsJSON bytes.
+//!
+//! What it showed (2026-12-06, `strand_reach_bins` 1 / 1.5 / 2 / 3) is in
+//! the documentation of that field.
+
+use std::path::Path;
+
+use glam::DVec3;
+use silva::Anchor;
+use silva::cloud::{PointCloud, ReadOptions, read_path};
+use silva::eval::report::Source;
+use silva::eval::run::{EvalOptions, TreeRow, evaluate};
+use silva::reconstruct::Options;
+use silva::reconstruct::dense::Params;
+use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+
+fn set(params: &mut Params, name: &str, value: f32) {
+    match name {
+        "strand_reach_bins" => params.strand_reach_bins = value,
+        "spur_spread_bins" => params.spur_spread_bins = value,
+        "spur_reach_bins" => params.spur_reach_bins = value,
+        "min_branch_bins" => params.min_branch_bins = value,
+        other => panic!("unknown setting {other}"),
+    }
+}
+
+fn median(mut values: Vec<f32>) -> f32 {
+    values.sort_by(f32::total_cmp);
+    values[values.len() / 2]
+}
+
+/// The clouds of tree `i` as `silva eval --synthetic` makes it.
+fn synthetic(i: usize, occluded: bool) -> (silva::Skeleton, PointCloud) {
+    let species = Species::ALL[i % Species::ALL.len()];
+    let seed = 1 + i as u64;
+    let anchor = Anchor {
+        origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
+        crs: Some("EPSG:28992".into()),
+    };
+    let truth = generate(&TreeParams::preset(species), seed, anchor);
+    let tls = if occluded {
+        TlsOptions::default()
+    } else {
+        TlsOptions {
+            points_per_m2: 1000.0,
+            occlusion: false,
+            ..TlsOptions::default()
+        }
+    };
+    let cloud = simulate_tls(&truth, &tls, seed);
+    (truth, cloud)
+}
+
+fn synthetic_summary(opts: &EvalOptions, n: usize, occluded: bool) -> String {
+    let rows: Vec<TreeRow> = (0..n)
+        .map(|i| {
+            let (truth, cloud) = synthetic(i, occluded);
+            evaluate("synthetic", Source::Synthetic, &cloud, Some(&truth), opts).0
+        })
+        .collect();
+    let truths: Vec<_> = rows.iter().filter_map(|r| r.truth.as_ref()).collect();
+    let of = |f: fn(&silva::eval::run::TruthFigures) -> f32| {
+        median(truths.iter().map(|t| f(t)).collect())
+    };
+    let both = truths
+        .iter()
+        .filter(|t| t.recall >= 0.99 && t.precision >= 0.99)
+        .count();
+    format!(
+        "recall {:.4} precision {:.4} both {both}/{n} branches {:.2} length {:.2} d_mean {:.4} m",
+        of(|t| t.recall),
+        of(|t| t.precision),
+        of(|t| t.branch_count_ratio),
+        of(|t| t.length_ratio),
+        of(|t| t.mean_distance_m),
+    )
+}
+
+fn real_summary(opts: &EvalOptions, dir: &Path) -> String {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .expect("DATA is a folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            name.is_some_and(|n| n.starts_with("tree") && n.ends_with(".xyz"))
+        })
+        .collect();
+    files.sort();
+    let mut out = String::new();
+    for path in files {
+        let (cloud, _) = read_path(&path, &ReadOptions::default()).expect("a cloud");
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        let (row, rec) = evaluate(&name, Source::Data, &cloud, None, opts);
+        let (Some(fit), Some(enc), Some(rec)) = (row.fit, row.encoding, rec) else {
+            out += &format!(" | {name}: no dense reconstruction");
+            continue;
+        };
+        let r5 = enc.chain.iter().find(|c| c.code.resolution == 5.0);
+        let branches: u32 = rec.metrics.branch_orders.iter().map(|o| o.count).sum();
+        out += &format!(
+            " | {name} fit {:.1} / {:.1} / {:.1} %, {branches} branches, {} internodes, {:.3} B/in, LsJSON {} B",
+            fit.within_2cm * 100.0,
+            fit.within_5cm * 100.0,
+            fit.supported_share * 100.0,
+            enc.internodes,
+            r5.map_or(f64::NAN, |c| c.code.bytes_per_internode),
+            enc.lsjson_bytes,
+        );
+    }
+    out
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let name = args.get(1).expect("PARAM VALUE…");
+    let n = std::env::var("N").map_or(20, |s| s.parse().expect("N is a count"));
+    let occluded = std::env::var_os("OCCLUDED").is_some();
+    let data = std::env::var_os("DATA");
+    for value in &args[2..] {
+        let value: f32 = value.parse().expect("a number");
+        let mut reconstruct = Options::default();
+        set(&mut reconstruct.dense, name, value);
+        let opts = EvalOptions {
+            reconstruct,
+            repeat: 1,
+            tolerance_m: 0.1,
+            min_truth_radius_m: 0.0,
+            foliage: None,
+        };
+        let real = data
+            .as_ref()
+            .map_or(String::new(), |d| real_summary(&opts, Path::new(d)));
+        println!(
+            "{name} = {value}: {}{real}",
+            synthetic_summary(&opts, n, occluded)
+        );
+    }
+}
