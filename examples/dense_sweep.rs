@@ -3,8 +3,9 @@
 //! `cargo run --release --example dense_sweep -- PARAM VALUE…`.
 //!
 //! `PARAM` is a field of `silva::reconstruct::dense::Params` among
-//! `strand_reach_bins`, `spur_spread_bins`, `spur_reach_bins` and
-//! `min_branch_bins`. For each value, reconstructs the synthetic TLS trees
+//! `strand_reach_bins`, `spur_spread_bins`, `spur_reach_bins`,
+//! `min_branch_bins`, `ring_spread_m`, `broken_ring_spread_m` and
+//! `broken_ring_pieces`. For each value, reconstructs the synthetic TLS trees
 //! of `silva eval --synthetic N --scan tls --density 1000 --no-occlusion`
 //! (N from `N`, default 20; with `OCCLUDED=1` the default occluded scans of
 //! `--scan tls`) with every other setting at its default, through
@@ -36,6 +37,9 @@ fn set(params: &mut Params, name: &str, value: f32) {
         "spur_spread_bins" => params.spur_spread_bins = value,
         "spur_reach_bins" => params.spur_reach_bins = value,
         "min_branch_bins" => params.min_branch_bins = value,
+        "ring_spread_m" => params.ring_spread_m = value,
+        "broken_ring_spread_m" => params.broken_ring_spread_m = value,
+        "broken_ring_pieces" => params.broken_ring_pieces = value as u32,
         other => panic!("unknown setting {other}"),
     }
 }
