@@ -179,7 +179,11 @@ pub struct Params {
     /// the same recall (0.9963) and 15 of 20 meeting both 0.99, but branch
     /// count / true 1.90 → 1.84 / 1.93; tree1 within 2 cm 83.7 → 80.2 /
     /// 76.6 %, within 5 cm 97.7 → 96.1 / 94.2 %; tree13 within 2 cm 70.6 →
-    /// 70.3 / 67.1 %.
+    /// 70.3 / 67.1 %. Not for want of radii: with every internode's radius
+    /// set to the median distance of its nearest points (`BROKEN_PIECES=3
+    /// cargo run --release --example fit_breakdown -- tree1.xyz`), tree1
+    /// reaches 86.1 % within 2 cm at 3 pieces and 88.6 % at 4: the loss
+    /// lies in the skeleton the joined sections make, not in its radii.
     pub broken_ring_pieces: u32,
     /// …when its RMS spread reaches this, in metres. Lowered to 0.03 or
     /// 0.02 m with 4 pieces, nothing changes on the 20 clean scans or the
