@@ -141,8 +141,9 @@ impl PointIndex {
     /// nearest other points within `radius`, closest first (equal distances
     /// by index): `visit(i, neighbours)` is called once per point, in no
     /// particular order. The answers are those of [`Self::nearest_k_within`]
-    /// without the point itself, found cell by cell (see [`cells`]) where the
-    /// cloud is large enough for a grid to pay.
+    /// without the point itself, found cell by cell (a grid of cubic cells,
+    /// module `spatial::cells`) where the cloud is large enough for a grid to
+    /// pay.
     ///
     /// ```
     /// use glam::Vec3;
