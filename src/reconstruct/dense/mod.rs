@@ -171,7 +171,7 @@ pub struct Params {
     /// [`Params::ring_spread_m`] seen in pieces)…
     ///
     /// Fewer pieces let the window join the arcs of more limbs (for the two
-    /// arcs of limbs of 2–10 cm radius, see [`Params::strand_reach_bins`])
+    /// sides of limbs of 2–10 cm radius, see [`Params::strand_reach_bins`])
     /// but cost the real trees' fit
     /// (2026-12-06, release, `DATA=/work/shared/data cargo run --release
     /// --example dense_sweep -- broken_ring_pieces 3 2`; 4 as in the
@@ -266,18 +266,19 @@ pub struct Params {
     /// 1 → 2: recall 0.8430 → 0.8410, precision 0.9512 → 0.9479, branch
     /// count 1.99 → 1.49.
     ///
-    /// What 1 keeps and 2 drops is mostly the far side of limbs of 2–10 cm
+    /// Most of the extra branches at 1 are second chains along limbs of 2–10 cm
     /// radius. On the clean oak s1 (`silva synth --species oak --seed 1 --scan
     /// tls --density 1000 --no-occlusion`; 2,608 branches against the truth's
     /// 529), `tools/dense_strands.py` finds 1,642 laterals shorter than 0.5 m
     /// (345 m) on the true branch they fork from: 929 on wood of 2–5 cm radius,
     /// their tips a median 4.6 cm off its axis, and 423 on 5–10 cm wood, 8.0 cm
-    /// off. A bin cuts such a limb's bark into two arcs that the section links
-    /// do not join, and each arc grows a chain. A trial (not kept) that moved
+    /// off: together 1,352 of the 2,079 extra branches. As on the thin twigs
+    /// above, the two sides of such a limb became two chains (seen on printed
+    /// examples; the sectioning was not traced). A trial (not kept) that moved
     /// the branch's nodes halfway to the strands dropped at 2 won back part of
     /// the fit (tree1 83.1 %, tree13 67.3 %), but on the occluded scans recall
     /// still fell to 0.8405 and precision to 0.9484. So the value stays 1. The
-    /// fix left to try is to join the two arcs into one section before the
+    /// fix left to try is to join the two sides into one section before the
     /// chains form.
     pub strand_reach_bins: f32,
     /// A short run of sections (at most [`Params::detour_max_nodes`])
