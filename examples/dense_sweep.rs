@@ -4,8 +4,8 @@
 //!
 //! `PARAM` is a field of `silva::reconstruct::dense::Params` among
 //! `strand_reach_bins`, `spur_spread_bins`, `spur_reach_bins`,
-//! `min_branch_bins`, `ring_spread_m`, `broken_ring_spread_m` and
-//! `broken_ring_pieces`. For each value, reconstructs the synthetic TLS trees
+//! `min_branch_bins`, `ring_spread_m`, `broken_ring_spread_m`,
+//! `broken_ring_pieces` and `section_link_spacings`. For each value, reconstructs the synthetic TLS trees
 //! of `silva eval --synthetic N --scan tls --density 1000 --no-occlusion`
 //! (N from `N`, default 20; with `OCCLUDED=1` the default occluded scans of
 //! `--scan tls`) with every other setting at its default, through
@@ -40,6 +40,7 @@ fn set(params: &mut Params, name: &str, value: f32) {
         "ring_spread_m" => params.ring_spread_m = value,
         "broken_ring_spread_m" => params.broken_ring_spread_m = value,
         "broken_ring_pieces" => params.broken_ring_pieces = value as u32,
+        "section_link_spacings" => params.section_link_spacings = value,
         other => panic!("unknown setting {other}"),
     }
 }
