@@ -25,7 +25,7 @@ use std::path::Path;
 use glam::DVec3;
 use silva::Anchor;
 use silva::cloud::{PointCloud, ReadOptions, read_path};
-use silva::eval::report::Source;
+use silva::eval::report::{Source, median};
 use silva::eval::run::{EvalOptions, TreeRow, evaluate};
 use silva::reconstruct::Options;
 use silva::reconstruct::dense::Params;
@@ -43,11 +43,6 @@ fn set(params: &mut Params, name: &str, value: f32) {
         "section_link_spacings" => params.section_link_spacings = value,
         other => panic!("unknown setting {other}"),
     }
-}
-
-fn median(mut values: Vec<f32>) -> f32 {
-    values.sort_by(f32::total_cmp);
-    values[values.len() / 2]
 }
 
 /// The clouds of tree `i` as `silva eval --synthetic` makes it.
@@ -81,7 +76,8 @@ fn synthetic_summary(opts: &EvalOptions, n: usize, occluded: bool) -> String {
         .collect();
     let truths: Vec<_> = rows.iter().filter_map(|r| r.truth.as_ref()).collect();
     let of = |f: fn(&silva::eval::run::TruthFigures) -> f32| {
-        median(truths.iter().map(|t| f(t)).collect())
+        let values: Vec<f64> = truths.iter().map(|t| f64::from(f(t))).collect();
+        median(&values).unwrap_or(f64::NAN)
     };
     let both = truths
         .iter()

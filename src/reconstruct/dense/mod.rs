@@ -175,10 +175,10 @@ pub struct Params {
     /// but cost the real trees' fit
     /// (2026-12-06, release, `DATA=/work/shared/data cargo run --release
     /// --example dense_sweep -- broken_ring_pieces 3 2`; 4 as in the
-    /// figures there): on the 20 clean scans median precision 0.9968 →
-    /// 0.9973 / 0.9973 and mean skeleton distance 19.5 → 18.4 / 18.4 mm at
-    /// the same recall (0.9963) and 15 of 20 meeting both 0.99, but branch
-    /// count / true 1.90 → 1.84 / 1.93; tree1 within 2 cm 83.7 → 80.2 /
+    /// figures there): on the 20 clean scans median precision 0.9963 →
+    /// 0.9968 / 0.9967 and mean skeleton distance 18.1 → 17.5 / 17.6 mm,
+    /// recall 0.9963 → 0.9962 / 0.9961, 15 of 20 meeting both 0.99, branch
+    /// count / true 1.88 → 1.83 / 1.91; tree1 within 2 cm 83.7 → 80.2 /
     /// 76.6 %, within 5 cm 97.7 → 96.1 / 94.2 %; tree13 within 2 cm 70.6 →
     /// 70.3 / 67.1 %. Not for want of radii: with every internode's radius
     /// set to the median distance of its nearest points (`BROKEN_PIECES=3
@@ -215,8 +215,8 @@ pub struct Params {
     /// ([`Params::strand_reach_bins`]; 2026-12-06, release,
     /// `DATA=/work/shared/data cargo run --release --example dense_sweep --
     /// section_link_spacings 4 5`, against 3): on the 20 clean scans median
-    /// recall 0.9963 → 0.9967 / 0.9970, precision 0.9968 → 0.9962 / 0.9966,
-    /// branch count / true 1.90 → 1.93 / 1.86, 15 of 20 meeting both 0.99
+    /// recall 0.9963 → 0.9965 / 0.9966, precision 0.9963 → 0.9959 / 0.9961,
+    /// branch count / true 1.88 → 1.88 / 1.85, 15 of 20 meeting both 0.99
     /// throughout; tree1 within 2 cm 83.7 → 81.9 / 80.9 %, tree13 70.6 →
     /// 68.5 / 66.3 %.
     pub section_link_spacings: f32,
@@ -267,13 +267,13 @@ pub struct Params {
     /// Re-measured at 1 / 1.5 / 2 / 3 bin widths (2026-12-06, release,
     /// `DATA=/work/shared/data cargo run --release --example dense_sweep --
     /// strand_reach_bins 1 1.5 2 3`). The 20 clean scans: median recall
-    /// 0.9963 / 0.9963 / 0.9962 / 0.9962, precision 0.9968 / 0.9967 / 0.9967
-    /// / 0.9966, branch count / true 1.90 / 1.82 / 1.68 / 1.36, 15 of 20
+    /// 0.9963 / 0.9963 / 0.9962 / 0.9959, precision 0.9963 / 0.9962 / 0.9962
+    /// / 0.9960, branch count / true 1.88 / 1.78 / 1.64 / 1.35, 15 of 20
     /// meeting both 0.99 at every value. tree1 within 2 cm 83.7 / 82.6 /
     /// 81.5 / 78.0 %, tree13 70.6 / 66.9 / 65.1 / 60.7 %; tree13's LsJSON
     /// 63.1 / 57.8 / 53.9 / 48.3 KB. The occluded scans (`OCCLUDED=1`) at
-    /// 1 → 2: recall 0.8430 → 0.8410, precision 0.9512 → 0.9479, branch
-    /// count 1.99 → 1.49.
+    /// 1 → 2: recall 0.8424 → 0.8401, precision 0.9506 → 0.9477, branch
+    /// count 1.89 → 1.43.
     ///
     /// Most of the extra branches at 1 are second chains along limbs of 2–10 cm
     /// radius. On the clean oak s1 (`silva synth --species oak --seed 1 --scan
@@ -286,9 +286,11 @@ pub struct Params {
     /// examples; the sectioning was not traced). A trial (not kept) that moved
     /// the branch's nodes halfway to the strands dropped at 2 won back part of
     /// the fit (tree1 83.1 %, tree13 67.3 %), but on the occluded scans recall
-    /// still fell to 0.8405 and precision to 0.9484. So the value stays 1. The
-    /// fix left to try is to join the two sides into one section before the
-    /// chains form.
+    /// still fell to 0.8405 and precision to 0.9484 (against 0.8430 and 0.9512
+    /// at 1; these four medians taken as the upper of the two middle values,
+    /// the sweep's figures above as their mean). So the value stays 1. The fix
+    /// left to try is to join the two sides into one section before the chains
+    /// form.
     pub strand_reach_bins: f32,
     /// A short run of sections (at most [`Params::detour_max_nodes`])
     /// between two thick stem rings (spread of at least
