@@ -57,11 +57,7 @@ fn synthetic(i: usize, occluded: bool) -> (silva::Skeleton, PointCloud) {
     let tls = if occluded {
         TlsOptions::default()
     } else {
-        TlsOptions {
-            points_per_m2: 1000.0,
-            occlusion: false,
-            ..TlsOptions::default()
-        }
+        TlsOptions::clean()
     };
     let cloud = simulate_tls(&truth, &tls, seed);
     (truth, cloud)

@@ -131,11 +131,7 @@ fn main() {
         let tls = if std::env::var_os("DEFAULT_TLS").is_some() {
             TlsOptions::default()
         } else {
-            TlsOptions {
-                points_per_m2: 1000.0,
-                occlusion: false,
-                ..TlsOptions::default()
-            }
+            TlsOptions::clean()
         };
         (simulate_tls(&truth, &tls, seed), Mode::Dense, 0.1, 0.0)
     };

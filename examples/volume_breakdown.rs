@@ -268,14 +268,7 @@ fn main() {
         };
         let truth = generate(&TreeParams::preset(species), seed, anchor);
         let cloud = match scan.as_str() {
-            "clean" => {
-                let o = TlsOptions {
-                    points_per_m2: 1000.0,
-                    occlusion: false,
-                    ..TlsOptions::default()
-                };
-                simulate_tls(&truth, &o, seed)
-            }
+            "clean" => simulate_tls(&truth, &TlsOptions::clean(), seed),
             "als" => {
                 let o = AlsOptions {
                     foliage: Foliage::for_species(species, Leaves::default()),

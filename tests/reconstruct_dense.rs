@@ -487,11 +487,7 @@ fn clean_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointClou
         seed,
         silva::Anchor::at(OFFSET),
     );
-    let clean = TlsOptions {
-        points_per_m2: 1000.0,
-        occlusion: false,
-        ..TlsOptions::default()
-    };
+    let clean = TlsOptions::clean();
     let cloud = simulate_tls(&truth, &clean, seed);
     (truth, cloud)
 }

@@ -412,11 +412,7 @@ mod tests {
     fn clean_scan_row(species: crate::synth::Species, seed: u64) -> (TreeRow, Skeleton) {
         use crate::synth::{TlsOptions, TreeParams, generate, simulate_tls};
         let truth = generate(&TreeParams::preset(species), seed, Anchor::default());
-        let clean = TlsOptions {
-            points_per_m2: 1000.0,
-            occlusion: false,
-            ..TlsOptions::default()
-        };
+        let clean = TlsOptions::clean();
         let cloud = simulate_tls(&truth, &clean, seed);
         let opts = EvalOptions {
             reconstruct: Options::default(),
