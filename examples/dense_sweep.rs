@@ -5,7 +5,8 @@
 //! `PARAM` is a field of `silva::reconstruct::dense::Params` among
 //! `strand_reach_bins`, `spur_spread_bins`, `spur_reach_bins`,
 //! `min_branch_bins`, `ring_spread_m`, `broken_ring_spread_m`,
-//! `broken_ring_pieces` and `section_link_spacings`. For each value, reconstructs the synthetic TLS trees
+//! `broken_ring_pieces`, `section_link_spacings`, `limb_min_radius_m`,
+//! `limb_min_subtree_m` and `limb_max_share`. For each value, reconstructs the synthetic TLS trees
 //! of `silva eval --synthetic N --scan tls --density 1000 --no-occlusion`
 //! (N from `N`, default 20; with `OCCLUDED=1` the default occluded scans of
 //! `--scan tls`) with every other setting at its default, through
@@ -41,6 +42,9 @@ fn set(params: &mut Params, name: &str, value: f32) {
         "broken_ring_spread_m" => params.broken_ring_spread_m = value,
         "broken_ring_pieces" => params.broken_ring_pieces = value as u32,
         "section_link_spacings" => params.section_link_spacings = value,
+        "limb_min_radius_m" => params.limb_min_radius_m = value,
+        "limb_min_subtree_m" => params.limb_min_subtree_m = value,
+        "limb_max_share" => params.limb_max_share = value,
         other => panic!("unknown setting {other}"),
     }
 }

@@ -291,6 +291,31 @@ pub struct Params {
     /// the sweep's figures above as their mean). So the value stays 1. The fix
     /// left to try is to join the two sides into one section before the chains
     /// form.
+    ///
+    /// On the same oak, the main chains of those limbs are off-centre too:
+    /// on 2–5 cm wood, the first few nodes past each fork of the 1,047 short
+    /// laterals lie a median 0.76 of the true radius off the axis, the
+    /// lateral's nodes 1.03 (on the bark), 473 of the laterals on the
+    /// opposite side (offsets more than 120° apart; a Python reading of the
+    /// reconstruction against the truth). Two more trials, measured and not
+    /// kept (2026-12-06, release):
+    /// - a reach of twice the heavier branch's cross-section spread where
+    ///   larger than the bin widths: clean scans branch count 1.88 → 1.51,
+    ///   precision 0.9963 → 0.9979, recall 0.9963 → 0.9948; tree1 within
+    ///   2 / 5 cm 83.7 / 97.7 → 74.4 / 90.9 %, below AdTree's 96.2 % at 5 cm;
+    /// - each interior node of a chain the stem tracking left alone moved to
+    ///   the centre of a circle fitted to the points in a slab one bin thick
+    ///   and 10 cm across it (Kåsa; RMS under 0.15 of the radius, 6 of 12
+    ///   sectors, radius under 10 cm), given the circle's radius, and then
+    ///   the chains within those radii of the centred axes dropped as those
+    ///   along the tracked stems' bark are (`simplify::bark_strands`):
+    ///   clean scans branch count 1.88 → 1.81, mean skeleton distance 18.1
+    ///   → 17.0 mm, precision 0.9963 → 0.9971, but the poplars s7 and s11
+    ///   fell from recall 0.978 / 0.979 to 0.948 / 0.942 (their twigs run
+    ///   beside their branches, inside the circles), and volume / true 1.07
+    ///   → 1.12. The circles alone, with no strand dropped, moved tree1's
+    ///   within 2 cm by −0.1 to −0.8 points (stricter or looser acceptance)
+    ///   and left tree13, whose slabs hold too few points, unchanged.
     pub strand_reach_bins: f32,
     /// A short run of sections (at most [`Params::detour_max_nodes`])
     /// between two thick stem rings (spread of at least
@@ -362,6 +387,11 @@ pub struct Params {
     /// forks where the share allows circles of this radius (metres).
     pub limb_min_subtree_m: f32,
     /// See [`Params::limb_min_subtree_m`].
+    ///
+    /// Lowering it does not reach the thin limbs: at 0.08, 0.05 and 0.03 m
+    /// (`DATA=/work/shared/data cargo run --release --example dense_sweep --
+    /// limb_min_radius_m 0.08 0.05 0.03`, 2026-12-06) every figure of the
+    /// clean synthetic scans and of tree1 and tree13 came out the same.
     pub limb_min_radius_m: f32,
     /// Split cross-sections that hold both stems of a narrow fork (see
     /// `fork_rings`)…
