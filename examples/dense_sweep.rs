@@ -23,14 +23,12 @@
 
 use std::path::Path;
 
-use glam::DVec3;
-use silva::Anchor;
 use silva::cloud::{PointCloud, ReadOptions, read_path};
 use silva::eval::report::{Source, median};
-use silva::eval::run::{EvalOptions, TreeRow, evaluate};
+use silva::eval::run::{EvalOptions, SyntheticTree, TreeRow, evaluate};
 use silva::reconstruct::Options;
 use silva::reconstruct::dense::Params;
-use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+use silva::synth::{TlsOptions, simulate_tls};
 
 fn set(params: &mut Params, name: &str, value: f32) {
     match name {
@@ -51,13 +49,7 @@ fn set(params: &mut Params, name: &str, value: f32) {
 
 /// The clouds of tree `i` as `silva eval --synthetic` makes it.
 fn synthetic(i: usize, occluded: bool) -> (silva::Skeleton, PointCloud) {
-    let species = Species::ALL[i % Species::ALL.len()];
-    let seed = 1 + i as u64;
-    let anchor = Anchor {
-        origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
-        crs: Some("EPSG:28992".into()),
-    };
-    let truth = generate(&TreeParams::preset(species), seed, anchor);
+    let SyntheticTree { seed, truth, .. } = SyntheticTree::nth(i, 1);
     let tls = if occluded {
         TlsOptions::default()
     } else {

@@ -26,14 +26,12 @@
 //! main extensions) alone, and the tip counts.
 
 use glam::{DVec3, Vec3};
+use silva::eval::run::SyntheticTree;
 use silva::reconstruct::metrics::wood_volume_m3;
 use silva::reconstruct::{Options, reconstruct};
-use silva::skeleton::{Anchor, NodeId, Skeleton};
+use silva::skeleton::{NodeId, Skeleton};
 use silva::spatial::PointIndex;
-use silva::synth::{
-    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, simulate_als,
-    simulate_tls,
-};
+use silva::synth::{AlsOptions, Foliage, Leaves, TlsOptions, simulate_als, simulate_tls};
 
 /// Sample spacing along internodes, in metres.
 const STEP_M: f32 = 0.02;
@@ -260,13 +258,11 @@ fn main() {
     };
     let mut all_true = 0.0;
     for i in 0..trees {
-        let species = Species::ALL[i % Species::ALL.len()];
-        let seed = first_seed + i as u64;
-        let anchor = Anchor {
-            origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
-            crs: Some("EPSG:28992".into()),
-        };
-        let truth = generate(&TreeParams::preset(species), seed, anchor);
+        let SyntheticTree {
+            species,
+            seed,
+            truth,
+        } = SyntheticTree::nth(i, first_seed);
         let cloud = match scan.as_str() {
             "clean" => simulate_tls(&truth, &TlsOptions::clean(), seed),
             "als" => {

@@ -8,16 +8,14 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use glam::DVec3;
 use serde::Serialize;
 
 use silva::cloud::{ReadOptions, read_path};
 use silva::eval::report::{Column, Source, median, render_table};
-use silva::eval::run::{EvalOptions, TreeRow, TruthFigures, evaluate};
+use silva::eval::run::{EvalOptions, SyntheticTree, TreeRow, TruthFigures, evaluate};
 use silva::eval::targets::{AIRBORNE, TERRESTRIAL, Tally, tally};
 use silva::reconstruct::{Mode, Options};
-use silva::skeleton::Anchor;
-use silva::synth::{Species, TreeParams, generate, simulate_als, simulate_tls};
+use silva::synth::{simulate_als, simulate_tls};
 
 use super::synth::{Scan, ScanArgs};
 
@@ -163,16 +161,13 @@ fn eval_folder(dir: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<TreeRow>> {
     Ok(rows)
 }
 
-/// Synthetic tree `i`: species in turn, seed `args.seed + i`, anchored in
-/// EPSG:28992 so that large coordinates are exercised too.
+/// Synthetic tree `i` ([`SyntheticTree::nth`]), scanned and evaluated.
 fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
-    let species = Species::ALL[i % Species::ALL.len()];
-    let seed = args.seed + i as u64;
-    let anchor = Anchor {
-        origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
-        crs: Some("EPSG:28992".into()),
-    };
-    let truth = generate(&TreeParams::preset(species), seed, anchor);
+    let SyntheticTree {
+        species,
+        seed,
+        truth,
+    } = SyntheticTree::nth(i, args.seed);
     let mut opts = opts.clone();
     let cloud = match args.scan {
         Scan::Tls => simulate_tls(&truth, &args.settings.tls(), seed),

@@ -20,7 +20,9 @@ use crate::mesh::{Lod, build_mesh};
 use crate::reconstruct::ground::split_ground;
 use crate::reconstruct::metrics::{OrderStats, TreeMetrics, order_stats, wood_volume_m3};
 use crate::reconstruct::{Mode, Options, Reconstruction, reconstruct};
-use crate::skeleton::{NodeId, Skeleton};
+use crate::skeleton::{Anchor, NodeId, Skeleton};
+use crate::synth::{Species, TreeParams, generate};
+use glam::DVec3;
 
 /// Breast height for DBH, in metres above the trunk base.
 const BREAST_HEIGHT_M: f32 = 1.3;
@@ -39,6 +41,47 @@ pub struct EvalOptions {
     /// The leaves the scan saw (airborne simulations): the true height is
     /// then the top of the foliage, not of the wood. `None`: wood only.
     pub foliage: Option<crate::synth::Foliage>,
+}
+
+/// Tree `i` of `silva eval --synthetic N --seed FIRST`: the species in
+/// turn ([`Species::ALL`]), seed `FIRST + i`, standing 30 m east of the one
+/// before it in EPSG:28992, so that large coordinates are exercised too.
+/// Diagnostics that reproduce the eval's trees build them here.
+///
+/// ```
+/// use silva::eval::run::SyntheticTree;
+/// use silva::synth::Species;
+/// let tree = SyntheticTree::nth(5, 1);
+/// assert_eq!((tree.species, tree.seed), (Species::ALL[1], 6));
+/// assert_eq!(tree.truth.anchor().origin.x, 155_150.0);
+/// ```
+#[derive(Debug, Clone)]
+pub struct SyntheticTree {
+    /// Its species' preset.
+    pub species: Species,
+    /// The seed of the generator and of the scan simulations.
+    pub seed: u64,
+    /// The generated skeleton, the truth the reconstruction is measured
+    /// against.
+    pub truth: Skeleton,
+}
+
+impl SyntheticTree {
+    /// Tree `i` of the run whose first seed is `first_seed`.
+    pub fn nth(i: usize, first_seed: u64) -> Self {
+        let species = Species::ALL[i % Species::ALL.len()];
+        let seed = first_seed + i as u64;
+        let anchor = Anchor {
+            origin: DVec3::new(155_000.0 + 30.0 * i as f64, 463_000.0, 1.5),
+            crs: Some("EPSG:28992".into()),
+        };
+        let truth = generate(&TreeParams::preset(species), seed, anchor);
+        Self {
+            species,
+            seed,
+            truth,
+        }
+    }
 }
 
 /// Figures against a known skeleton.
