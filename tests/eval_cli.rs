@@ -87,3 +87,38 @@ fn airborne_report_counts_the_trees_that_meet_each_target() {
         "{table}"
     );
 }
+
+/// Another scan draw scans the same trees with other returns: the truth
+/// (its height) stays, the reconstruction changes (a clip holds as many
+/// returns in every draw, but not the same ones), and draw 0 is the default.
+#[test]
+fn a_scan_draw_rescans_the_same_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |draw: Option<&str>| {
+        let report = dir.path().join(format!("r{}.json", draw.unwrap_or("-")));
+        let mut cmd = silva();
+        cmd.args(["eval", "--synthetic", "1", "--scan", "als", "--repeat", "1"])
+            .arg("--report")
+            .arg(&report);
+        if let Some(d) = draw {
+            cmd.args(["--scan-draw", d]);
+        }
+        cmd.succeeds();
+        let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        let tree = json["trees"][0].clone();
+        let measured = tree["metrics"]["height_m"].as_f64().unwrap();
+        let true_height = measured - tree["truth"]["height_error_m"].as_f64().unwrap();
+        let name = tree["name"].as_str().unwrap().to_string();
+        (name, measured, true_height)
+    };
+    let (default_name, default_measured, default_true) = run(None);
+    let (zero_name, zero_measured, _) = run(Some("0"));
+    let (one_name, one_measured, one_true) = run(Some("1"));
+    assert_eq!(
+        (zero_name.as_str(), zero_measured),
+        (default_name.as_str(), default_measured)
+    );
+    assert_eq!(one_name, format!("{default_name}-d1"));
+    assert_ne!(one_measured, default_measured, "other returns");
+    assert!((one_true - default_true).abs() < 1e-3, "the same tree");
+}

@@ -35,6 +35,12 @@ pub struct Args {
     /// First seed of the synthetic trees (tree i uses seed + i).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Scan the same trees with another draw of the scanner's randomness
+    /// (0: the draw of `silva synth --seed`). The trees stay the same, so
+    /// runs with draws 0, 1, 2… show how much a figure owes to which
+    /// returns a scan happened to record.
+    #[arg(long, default_value_t = 0)]
+    scan_draw: u64,
     /// Reconstruction pipeline.
     #[arg(long, value_enum, default_value_t = Mode::Auto)]
     mode: Mode,
@@ -169,17 +175,22 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
         truth,
     } = SyntheticTree::nth(i, args.seed);
     let mut opts = opts.clone();
+    let scan_seed = scan_seed(seed, args.scan_draw);
     let cloud = match args.scan {
-        Scan::Tls => simulate_tls(&truth, &args.settings.tls(), seed),
+        Scan::Tls => simulate_tls(&truth, &args.settings.tls(), scan_seed),
         Scan::Als => {
             let als = args.settings.als(species);
             // The true height of an airborne scan is the top of the foliage.
             opts.foliage = Some(als.foliage.clone());
-            simulate_als(&truth, &als, seed)
+            simulate_als(&truth, &als, scan_seed)
         }
     };
+    let draw = match args.scan_draw {
+        0 => String::new(),
+        d => format!("-d{d}"),
+    };
     let name = format!(
-        "{}-s{seed}-{}",
+        "{}-s{seed}-{}{draw}",
         species.name(),
         if args.scan == Scan::Als { "als" } else { "tls" }
     );
@@ -189,6 +200,14 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
         truth.internode_count()
     );
     evaluate(&name, Source::Synthetic, &cloud, Some(&truth), &opts).0
+}
+
+/// The scanner's seed for tree seed `seed` and scan draw `draw`: the tree's
+/// own seed for draw 0, as `silva synth` scans it; for other draws the seed
+/// moved by a multiple of an odd 64-bit constant (the golden ratio's), so
+/// that no draw of one tree repeats a draw of another nearby seed.
+fn scan_seed(seed: u64, draw: u64) -> u64 {
+    seed.wrapping_add(draw.wrapping_mul(0x9E37_79B9_7F4A_7C15))
 }
 
 fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {
