@@ -122,3 +122,59 @@ fn a_scan_draw_rescans_the_same_tree() {
     assert_ne!(one_measured, default_measured, "other returns");
     assert!((one_true - default_true).abs() < 1e-3, "the same tree");
 }
+
+/// Several draws: each tree is scanned once per draw, the tallies count
+/// every scan, and each draw's tallies add up to them.
+#[test]
+fn several_scan_draws_are_tallied_per_draw_and_together() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("draws.json");
+    let out = silva()
+        .args(["eval", "--synthetic", "2", "--scan", "als", "--repeat", "1"])
+        .args(["--scan-draw", "1", "--scan-draws", "2"])
+        .arg("--report")
+        .arg(&report)
+        .succeeds();
+    let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let names: Vec<&str> = json["trees"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "oak-s1-als-d1",
+            "birch-s2-als-d1",
+            "oak-s1-als-d2",
+            "birch-s2-als-d2"
+        ]
+    );
+    let summary = &json["summary"];
+    let by_draw = summary["targets_by_draw"].as_array().unwrap();
+    let draws: Vec<u64> = by_draw
+        .iter()
+        .map(|d| d["draw"].as_u64().unwrap())
+        .collect();
+    assert_eq!(draws, [1, 2]);
+    for (k, total) in summary["targets"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(total["trees"], 4);
+        let met: u64 = by_draw
+            .iter()
+            .map(|d| {
+                assert_eq!(d["targets"][k]["trees"], 2);
+                d["targets"][k]["met"].as_u64().unwrap()
+            })
+            .sum();
+        assert_eq!(total["met"].as_u64().unwrap(), met);
+    }
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("per draw"), "{table}");
+    let refused = silva()
+        .args(["eval", "--synthetic", "1", "--scan-draws", "0"])
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--scan-draws"));
+}

@@ -41,6 +41,12 @@ pub struct Args {
     /// returns a scan happened to record.
     #[arg(long, default_value_t = 0)]
     scan_draw: u64,
+    /// Scan every synthetic tree this many times, with draws `--scan-draw`,
+    /// `--scan-draw` + 1, …; the target tallies then count every scan, and
+    /// each draw's tallies are listed too. A tally of one draw moves by
+    /// several trees in 100 from draw to draw (see `silva::eval::targets`).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    scan_draws: u64,
     /// Reconstruction pipeline.
     #[arg(long, value_enum, default_value_t = Mode::Auto)]
     mode: Mode,
@@ -87,7 +93,18 @@ struct Summary {
     /// Median of the synthetic trees' reconstructed over true branch count.
     median_branch_count_ratio: Option<f64>,
     /// Synthetic trees meeting each of issue 3's per-tree targets for the
-    /// scan (empty without synthetic trees).
+    /// scan (empty without synthetic trees); with several scan draws, every
+    /// scan of a tree counts.
+    targets: Vec<Tally>,
+    /// With several scan draws (`--scan-draws`), each draw's tallies.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    targets_by_draw: Vec<DrawTallies>,
+}
+
+/// The target tallies of one scan draw.
+#[derive(Serialize)]
+struct DrawTallies {
+    draw: u64,
     targets: Vec<Tally>,
 }
 
@@ -103,7 +120,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.data {
         rows.extend(eval_folder(dir, &opts)?);
     }
-    rows.extend((0..args.synthetic).map(|i| eval_synthetic(&args, i, &opts)));
+    let first_synthetic = rows.len();
+    let draws = args.scan_draw..args.scan_draw + args.scan_draws;
+    for draw in draws.clone() {
+        rows.extend((0..args.synthetic).map(|i| eval_synthetic(&args, i, draw, &opts)));
+    }
+    let mut summary = summarise(&rows, args.scan);
+    if args.scan_draws > 1 && args.synthetic > 0 {
+        let scans = rows[first_synthetic..].chunks(args.synthetic);
+        summary.targets_by_draw = draws
+            .zip(scans)
+            .map(|(draw, rows)| DrawTallies {
+                draw,
+                targets: target_tallies(rows, args.scan),
+            })
+            .collect();
+    }
     let report = Report {
         silva_version: env!("CARGO_PKG_VERSION"),
         build: if cfg!(debug_assertions) {
@@ -113,13 +145,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         scan: args.scan,
         leaves: (args.scan == Scan::Als && args.synthetic > 0).then_some(args.settings.leaves),
-        summary: summarise(&rows, args.scan),
+        summary,
         trees: &rows,
     };
     let json = serde_json::to_string_pretty(&report)?;
     fs::write(&args.report, json).with_context(|| format!("writing {}", args.report.display()))?;
     print!("{}", render_table(&rows, &columns()));
-    print!("{}", render_tallies(&report.summary.targets, &opts));
+    print!("{}", render_tallies(&report.summary, &opts));
     eprintln!("report written to {}", args.report.display());
     Ok(())
 }
@@ -168,14 +200,14 @@ fn eval_folder(dir: &Path, opts: &EvalOptions) -> anyhow::Result<Vec<TreeRow>> {
 }
 
 /// Synthetic tree `i` ([`SyntheticTree::nth`]), scanned and evaluated.
-fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
+fn eval_synthetic(args: &Args, i: usize, draw: u64, opts: &EvalOptions) -> TreeRow {
     let SyntheticTree {
         species,
         seed,
         truth,
     } = SyntheticTree::nth(i, args.seed);
     let mut opts = opts.clone();
-    let scan_seed = scan_seed(seed, args.scan_draw);
+    let scan_seed = scan_seed(seed, draw);
     let cloud = match args.scan {
         Scan::Tls => simulate_tls(&truth, &args.settings.tls(), scan_seed),
         Scan::Als => {
@@ -185,7 +217,7 @@ fn eval_synthetic(args: &Args, i: usize, opts: &EvalOptions) -> TreeRow {
             simulate_als(&truth, &als, scan_seed)
         }
     };
-    let draw = match args.scan_draw {
+    let draw = match draw {
         0 => String::new(),
         d => format!("-d{d}"),
     };
@@ -215,18 +247,6 @@ fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {
     let of = |f: fn(&TreeRow) -> Option<f64>| {
         median(&ok.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
     };
-    // Only synthetic trees have a truth; one whose reconstruction failed
-    // has no figures and meets no target, but counts among the trees.
-    let truths: Vec<&TruthFigures> = ok.iter().filter_map(|r| r.truth.as_ref()).collect();
-    let synthetic = rows
-        .iter()
-        .filter(|r| r.source == Source::Synthetic)
-        .count();
-    let targets = match scan {
-        _ if synthetic == 0 => Vec::new(),
-        Scan::Tls => tally(&TERRESTRIAL, &truths),
-        Scan::Als => tally(&AIRBORNE, &truths),
-    };
     Summary {
         trees: rows.len(),
         failed: rows.len() - ok.len(),
@@ -241,27 +261,70 @@ fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {
         median_branch_count_ratio: of(|r| {
             r.truth.as_ref().map(|t| f64::from(t.branch_count_ratio))
         }),
-        targets: targets
-            .into_iter()
-            .map(|t| Tally {
-                trees: synthetic,
-                ..t
-            })
-            .collect(),
+        targets: target_tallies(rows, scan),
+        targets_by_draw: Vec::new(),
     }
 }
 
-/// The tallies as lines under the table, with the comparison's settings.
-fn render_tallies(tallies: &[Tally], opts: &EvalOptions) -> String {
-    if tallies.is_empty() {
+/// The synthetic `rows`' tallies of the scan's targets (empty without
+/// synthetic rows). Only synthetic trees have a truth; one whose
+/// reconstruction failed has no figures and meets no target, but counts
+/// among the trees.
+fn target_tallies(rows: &[TreeRow], scan: Scan) -> Vec<Tally> {
+    let truths: Vec<&TruthFigures> = rows
+        .iter()
+        .filter(|r| r.error.is_none())
+        .filter_map(|r| r.truth.as_ref())
+        .collect();
+    let synthetic = rows
+        .iter()
+        .filter(|r| r.source == Source::Synthetic)
+        .count();
+    let targets = match scan {
+        _ if synthetic == 0 => Vec::new(),
+        Scan::Tls => tally(&TERRESTRIAL, &truths),
+        Scan::Als => tally(&AIRBORNE, &truths),
+    };
+    targets
+        .into_iter()
+        .map(|t| Tally {
+            trees: synthetic,
+            ..t
+        })
+        .collect()
+}
+
+/// The tallies as lines under the table, with the comparison's settings;
+/// with several scan draws, each draw's count and their median follow.
+fn render_tallies(summary: &Summary, opts: &EvalOptions) -> String {
+    if summary.targets.is_empty() {
         return String::new();
     }
+    let scans = match summary.targets_by_draw.len() {
+        0 | 1 => "synthetic trees",
+        _ => "scans of synthetic trees",
+    };
     let mut out = format!(
-        "synthetic trees meeting each target (recall and precision at {} m, recall of branches of radius >= {} m):\n",
+        "{scans} meeting each target (recall and precision at {} m, recall of branches of radius >= {} m):\n",
         opts.tolerance_m, opts.min_truth_radius_m
     );
-    for t in tallies {
-        out += &format!("  {:<30} {:>4} of {}\n", t.target, t.met, t.trees);
+    for (k, t) in summary.targets.iter().enumerate() {
+        out += &format!("  {:<30} {:>4} of {}", t.target, t.met, t.trees);
+        let per_draw: Vec<usize> = summary
+            .targets_by_draw
+            .iter()
+            .filter_map(|d| d.targets.get(k).map(|t| t.met))
+            .collect();
+        if !per_draw.is_empty() {
+            let counts: Vec<f64> = per_draw.iter().map(|&n| n as f64).collect();
+            let list: Vec<String> = per_draw.iter().map(usize::to_string).collect();
+            out += &format!(
+                "   per draw {} (median {})",
+                list.join(" "),
+                median(&counts).unwrap_or(f64::NAN)
+            );
+        }
+        out += "\n";
     }
     out
 }
