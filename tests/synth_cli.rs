@@ -5,8 +5,8 @@ mod cli_support;
 use glam::DVec3;
 use silva::cloud::{ReadOptions, read_path};
 use silva::synth::{
-    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, simulate_als,
-    simulate_tls,
+    AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, scan_seed,
+    simulate_als, simulate_tls,
 };
 use silva::{Anchor, Skeleton};
 
@@ -99,6 +99,50 @@ fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
             );
         }
     }
+}
+
+/// `--scan-draw` scans the same tree with the scanner seeded by
+/// `scan_seed(seed, draw)`, as `silva eval --scan-draw` does; draw 0 is the
+/// seed's own scan.
+#[test]
+fn a_scan_draw_rescans_the_same_tree_with_another_scanner_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let anchor = Anchor::at(DVec3::new(85_000.0, 446_000.0, 0.0));
+    let tree = generate(&TreeParams::preset(Species::Pine), 4, anchor);
+    for draw in [0, 2] {
+        let path = dir.path().join(format!("draw{draw}.ply"));
+        let out = silva()
+            .args(["synth", "--species", "pine", "--seed", "4", "--scan", "tls"])
+            .args([
+                "--anchor",
+                "85000,446000,0",
+                "--scan-draw",
+                &draw.to_string(),
+            ])
+            .arg("-o")
+            .arg(&path)
+            .succeeds();
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(summary["scan_draw"], draw);
+        assert_eq!(
+            summary["internodes"],
+            tree.internode_count(),
+            "the same tree"
+        );
+        let expected = simulate_tls(&tree, &TlsOptions::default(), scan_seed(4, draw));
+        let (back, _) = read_path(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(back.len(), expected.len(), "draw {draw}");
+        for i in (0..back.len()).step_by(97) {
+            let d = back.absolute(i) - expected.absolute(i);
+            assert!(
+                d.abs().max_element() <= 1.0e-3,
+                "draw {draw}: point {i} off by {d}"
+            );
+        }
+    }
+    let own = simulate_tls(&tree, &TlsOptions::default(), 4);
+    let other = simulate_tls(&tree, &TlsOptions::default(), scan_seed(4, 2));
+    assert_ne!(own.points, other.points, "another draw, other points");
 }
 
 #[test]

@@ -15,7 +15,7 @@ use silva::eval::report::{Column, Source, median, render_table};
 use silva::eval::run::{EvalOptions, SyntheticTree, TreeRow, TruthFigures, evaluate};
 use silva::eval::targets::{AIRBORNE, TERRESTRIAL, Tally, tally};
 use silva::reconstruct::{Mode, Options};
-use silva::synth::{simulate_als, simulate_tls};
+use silva::synth::{scan_seed, simulate_als, simulate_tls};
 
 use super::synth::{Scan, ScanArgs};
 
@@ -35,12 +35,6 @@ pub struct Args {
     /// First seed of the synthetic trees (tree i uses seed + i).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Scan the same trees with another draw of the scanner's randomness
-    /// (0: the draw of `silva synth --seed`). The trees stay the same, so
-    /// runs with draws 0, 1, 2… show how much a figure owes to which
-    /// returns a scan happened to record.
-    #[arg(long, default_value_t = 0)]
-    scan_draw: u64,
     /// Scan every synthetic tree this many times, with draws `--scan-draw`,
     /// `--scan-draw` + 1, …; the target tallies then count every scan, and
     /// each draw's tallies are listed too. A tally of one draw moves by
@@ -121,7 +115,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rows.extend(eval_folder(dir, &opts)?);
     }
     let first_synthetic = rows.len();
-    let draws = args.scan_draw..args.scan_draw + args.scan_draws;
+    let first_draw = args.settings.scan_draw;
+    let draws = first_draw..first_draw + args.scan_draws;
     for draw in draws.clone() {
         rows.extend((0..args.synthetic).map(|i| eval_synthetic(&args, i, draw, &opts)));
     }
@@ -232,14 +227,6 @@ fn eval_synthetic(args: &Args, i: usize, draw: u64, opts: &EvalOptions) -> TreeR
         truth.internode_count()
     );
     evaluate(&name, Source::Synthetic, &cloud, Some(&truth), &opts).0
-}
-
-/// The scanner's seed for tree seed `seed` and scan draw `draw`: the tree's
-/// own seed for draw 0, as `silva synth` scans it; for other draws the seed
-/// moved by a multiple of an odd 64-bit constant (the golden ratio's), so
-/// that no draw of one tree repeats a draw of another nearby seed.
-fn scan_seed(seed: u64, draw: u64) -> u64 {
-    seed.wrapping_add(draw.wrapping_mul(0x9E37_79B9_7F4A_7C15))
 }
 
 fn summarise(rows: &[TreeRow], scan: Scan) -> Summary {

@@ -57,6 +57,12 @@ pub struct ScanArgs {
     /// `off` (bare twigs) as AHN, flown in winter and early spring.
     #[arg(long, value_enum, default_value_t = Leaves::Off)]
     pub leaves: Leaves,
+    /// Scan with another draw of the scanner's randomness (0: the draw of
+    /// the seed alone; see `silva::synth::scan_seed`). The tree stays the
+    /// same, so draws 0, 1, 2… show how much a figure owes to which returns
+    /// a scan happened to record.
+    #[arg(long, default_value_t = 0)]
+    pub scan_draw: u64,
 }
 
 impl ScanArgs {
@@ -202,9 +208,10 @@ struct Simulated {
 
 fn simulate(tree: &Skeleton, scan: Scan, args: &Args) -> anyhow::Result<Simulated> {
     args.settings.validate()?;
+    let scan_seed = silva::synth::scan_seed(args.seed, args.settings.scan_draw);
     Ok(match scan {
         Scan::Tls => Simulated {
-            cloud: simulate_tls(tree, &args.settings.tls(), args.seed),
+            cloud: simulate_tls(tree, &args.settings.tls(), scan_seed),
             clip_area_m2: None,
         },
         Scan::Als => {
@@ -214,7 +221,7 @@ fn simulate(tree: &Skeleton, scan: Scan, args: &Args) -> anyhow::Result<Simulate
             };
             let half = opts.clip_half_width_m(tree);
             Simulated {
-                cloud: simulate_als(tree, &opts, args.seed),
+                cloud: simulate_als(tree, &opts, scan_seed),
                 clip_area_m2: Some(4.0 * half * half),
             }
         }
@@ -236,6 +243,7 @@ fn summary(
         "base_radius_m": tree.radius(silva::NodeId::ROOT),
     });
     if let Some(s) = scan {
+        out["scan_draw"] = args.settings.scan_draw.into();
         out["points"] = s.cloud.len().into();
         if let Some(area) = s.clip_area_m2 {
             out["clip_area_m2"] = area.into();

@@ -45,6 +45,24 @@ pub use als::{AlsOptions, Foliage, Leaves, MAX_ALS_POINTS, simulate_als};
 pub use tls::{MAX_TLS_POINTS, ScannerPlacement, TlsGround, TlsOptions, simulate_tls};
 pub use weber_penn::{CrownShape, LevelParams, MAX_NODES, TreeParams, generate};
 
+/// The scanner's seed for the tree of seed `seed` in scan draw `draw`
+/// (`silva synth --scan-draw`, `silva eval --scan-draw`): the tree's own
+/// seed for draw 0, so that one seed gives one tree and one scan
+/// everywhere; for other draws the seed moved by `draw` times an odd 64-bit
+/// constant (the golden ratio's), so that no small draw of one tree repeats
+/// a draw of another nearby seed. The tree is always generated from `seed`
+/// itself: another draw scans the same tree with other pulses.
+///
+/// ```
+/// use silva::synth::scan_seed;
+/// assert_eq!(scan_seed(7, 0), 7);
+/// assert_ne!(scan_seed(7, 1), scan_seed(8, 0));
+/// assert_ne!(scan_seed(7, 1), scan_seed(8, 1));
+/// ```
+pub fn scan_seed(seed: u64, draw: u64) -> u64 {
+    seed.wrapping_add(draw.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+}
+
 /// A tree species with a generator preset ([`TreeParams::preset`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
