@@ -3,7 +3,7 @@
 mod cli_support;
 
 use glam::DVec3;
-use silva::cloud::{ReadOptions, read_path};
+use silva::cloud::{PointCloud, ReadOptions, read_path};
 use silva::synth::{
     AlsOptions, Foliage, Leaves, Species, TlsOptions, TreeParams, generate, scan_seed,
     simulate_als, simulate_tls,
@@ -89,15 +89,7 @@ fn clouds_written_by_the_cli_keep_their_coordinates_to_the_millimetre() {
         } else {
             simulate_tls(&tree, &TlsOptions::default(), 3)
         };
-        let (back, _) = read_path(&path, &ReadOptions::default()).unwrap();
-        assert_eq!(back.len(), expected.len(), "{file}");
-        for i in (0..back.len()).step_by(97) {
-            let d = back.absolute(i) - expected.absolute(i);
-            assert!(
-                d.abs().max_element() <= 1.0e-3,
-                "{file}: point {i} off by {d}"
-            );
-        }
+        assert_file_holds(&path, &expected, file);
     }
 }
 
@@ -130,19 +122,25 @@ fn a_scan_draw_rescans_the_same_tree_with_another_scanner_seed() {
             "the same tree"
         );
         let expected = simulate_tls(&tree, &TlsOptions::default(), scan_seed(4, draw));
-        let (back, _) = read_path(&path, &ReadOptions::default()).unwrap();
-        assert_eq!(back.len(), expected.len(), "draw {draw}");
-        for i in (0..back.len()).step_by(97) {
-            let d = back.absolute(i) - expected.absolute(i);
-            assert!(
-                d.abs().max_element() <= 1.0e-3,
-                "draw {draw}: point {i} off by {d}"
-            );
-        }
+        assert_file_holds(&path, &expected, &format!("draw {draw}"));
     }
     let own = simulate_tls(&tree, &TlsOptions::default(), 4);
     let other = simulate_tls(&tree, &TlsOptions::default(), scan_seed(4, 2));
     assert_ne!(own.points, other.points, "another draw, other points");
+}
+
+/// The cloud written at `path` holds `expected`'s points, every 97th
+/// checked to the millimetre in absolute coordinates.
+fn assert_file_holds(path: &std::path::Path, expected: &PointCloud, what: &str) {
+    let (back, _) = read_path(path, &ReadOptions::default()).unwrap();
+    assert_eq!(back.len(), expected.len(), "{what}");
+    for i in (0..back.len()).step_by(97) {
+        let d = back.absolute(i) - expected.absolute(i);
+        assert!(
+            d.abs().max_element() <= 1.0e-3,
+            "{what}: point {i} off by {d}"
+        );
+    }
 }
 
 #[test]
