@@ -11,7 +11,10 @@
 //! `lateral_max_drop_spreads`. For each value, reconstructs the synthetic TLS trees
 //! of `silva eval --synthetic N --scan tls --density 1000 --no-occlusion`
 //! (N from `N`, default 20; with `OCCLUDED=1` the default occluded scans of
-//! `--scan tls`) with every other setting at its default, through
+//! `--scan tls`; with `DRAWS=K`, each tree scanned in draws 0…K−1 as
+//! `--scan-draws K` scans it, the medians taken over every scan and the
+//! trees meeting both targets counted per draw, since a single draw's count
+//! moves by a tree or two) with every other setting at its default, through
 //! `silva::eval::run::evaluate` as `silva eval` does, and prints the median
 //! recall, precision, branch count and length over the truth's, the mean
 //! skeleton distance, how many trees meet recall and precision ≥ 0.99
@@ -46,7 +49,7 @@ use silva::eval::report::{Source, median};
 use silva::eval::run::{EvalOptions, SyntheticTree, TreeRow, evaluate};
 use silva::reconstruct::Options;
 use silva::reconstruct::dense::Params;
-use silva::synth::{TlsOptions, simulate_tls};
+use silva::synth::{TlsOptions, scan_seed, simulate_tls};
 
 fn set(params: &mut Params, name: &str, value: f32) {
     match name {
@@ -69,8 +72,20 @@ fn set(params: &mut Params, name: &str, value: f32) {
     }
 }
 
-/// The clouds of tree `i` as `silva eval --synthetic` makes it.
-fn synthetic(i: usize, occluded: bool) -> (String, silva::Skeleton, PointCloud) {
+/// The synthetic scans a sweep measures on.
+#[derive(Clone, Copy)]
+struct Scans {
+    /// Trees, as the first `trees` of `silva eval --synthetic`.
+    trees: usize,
+    /// Scan draws per tree, 0…draws−1.
+    draws: u64,
+    /// The default occluded scan instead of the clean one.
+    occluded: bool,
+}
+
+/// The clouds of tree `i` in scan draw `draw` as `silva eval --synthetic
+/// --scan-draw` makes it.
+fn synthetic(i: usize, draw: u64, occluded: bool) -> (String, silva::Skeleton, PointCloud) {
     let SyntheticTree {
         species,
         seed,
@@ -81,14 +96,21 @@ fn synthetic(i: usize, occluded: bool) -> (String, silva::Skeleton, PointCloud) 
     } else {
         TlsOptions::clean()
     };
-    let cloud = simulate_tls(&truth, &tls, seed);
-    (format!("{species}-s{seed}"), truth, cloud)
+    let cloud = simulate_tls(&truth, &tls, scan_seed(seed, draw));
+    let suffix = if draw > 0 {
+        format!("-d{draw}")
+    } else {
+        String::new()
+    };
+    (format!("{species}-s{seed}{suffix}"), truth, cloud)
 }
 
-fn synthetic_summary(opts: &EvalOptions, n: usize, occluded: bool) -> String {
-    let rows: Vec<TreeRow> = (0..n)
-        .map(|i| {
-            let (name, truth, cloud) = synthetic(i, occluded);
+fn synthetic_summary(opts: &EvalOptions, scans: Scans) -> String {
+    let n = scans.trees;
+    let rows: Vec<TreeRow> = (0..scans.draws)
+        .flat_map(|draw| (0..n).map(move |i| (i, draw)))
+        .map(|(i, draw)| {
+            let (name, truth, cloud) = synthetic(i, draw, scans.occluded);
             evaluate(&name, Source::Synthetic, &cloud, Some(&truth), opts).0
         })
         .collect();
@@ -97,10 +119,21 @@ fn synthetic_summary(opts: &EvalOptions, n: usize, occluded: bool) -> String {
         let values: Vec<f64> = truths.iter().map(|t| f64::from(f(t))).collect();
         median(&values).unwrap_or(f64::NAN)
     };
-    let both = truths
-        .iter()
-        .filter(|t| t.recall >= 0.99 && t.precision >= 0.99)
-        .count();
+    let per_draw: Vec<String> = rows
+        .chunks(n.max(1))
+        .map(|draw| {
+            let both = draw
+                .iter()
+                .filter_map(|r| r.truth.as_ref())
+                .filter(|t| t.recall >= 0.99 && t.precision >= 0.99)
+                .count();
+            both.to_string()
+        })
+        .collect();
+    let both = match per_draw.as_slice() {
+        [one] => format!("{one}/{n}"),
+        many => format!("{} of {n} per draw", many.join(" ")),
+    };
     let short: Vec<String> = rows
         .iter()
         .filter_map(|r| r.truth.as_ref().map(|t| (r, t)))
@@ -108,7 +141,7 @@ fn synthetic_summary(opts: &EvalOptions, n: usize, occluded: bool) -> String {
         .map(|(r, t)| format!("{} {:.3}/{:.3}", r.name, t.recall, t.precision))
         .collect();
     format!(
-        "recall {:.4} precision {:.4} both {both}/{n} branches {:.2} length {:.2} d_mean {:.4} m (short: {})",
+        "recall {:.4} precision {:.4} both {both} branches {:.2} length {:.2} d_mean {:.4} m (short: {})",
         of(|t| t.recall),
         of(|t| t.precision),
         of(|t| t.branch_count_ratio),
@@ -155,8 +188,11 @@ fn real_summary(opts: &EvalOptions, dir: &Path) -> String {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let name = args.get(1).expect("PARAM VALUE…");
-    let n = std::env::var("N").map_or(20, |s| s.parse().expect("N is a count"));
-    let occluded = std::env::var_os("OCCLUDED").is_some();
+    let scans = Scans {
+        trees: std::env::var("N").map_or(20, |s| s.parse().expect("N is a count")),
+        draws: std::env::var("DRAWS").map_or(1, |s| s.parse().expect("DRAWS is a count")),
+        occluded: std::env::var_os("OCCLUDED").is_some(),
+    };
     let data = std::env::var_os("DATA");
     for value in &args[2..] {
         let value: f32 = value.parse().expect("a number");
@@ -174,7 +210,7 @@ fn main() {
             .map_or(String::new(), |d| real_summary(&opts, Path::new(d)));
         println!(
             "{name} = {value}: {}{real}",
-            synthetic_summary(&opts, n, occluded)
+            synthetic_summary(&opts, scans)
         );
     }
 }
