@@ -177,4 +177,10 @@ fn several_scan_draws_are_tallied_per_draw_and_together() {
         .unwrap();
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--scan-draws"));
+    let last = u64::MAX.to_string();
+    let line = silva()
+        .args(["eval", "--synthetic", "1", "--scan-draws", "2"])
+        .args(["--scan-draw", &last])
+        .fails_with_one_line();
+    assert!(line.contains("--scan-draws"), "{line}");
 }

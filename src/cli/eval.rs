@@ -116,7 +116,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let first_synthetic = rows.len();
     let first_draw = args.settings.scan_draw;
-    let draws = first_draw..first_draw + args.scan_draws;
+    let end = first_draw
+        .checked_add(args.scan_draws)
+        .context("--scan-draw plus --scan-draws must stay below 2^64")?;
+    let draws = first_draw..end;
     for draw in draws.clone() {
         rows.extend((0..args.synthetic).map(|i| eval_synthetic(&args, i, draw, &opts)));
     }
