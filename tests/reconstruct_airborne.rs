@@ -506,8 +506,8 @@ fn an_upside_down_clip_is_rejected() {
     );
 }
 
-#[test]
-fn two_separate_trees_give_a_flagged_best_effort() {
+/// Two copies of one groundless poplar clip, `apart_m` apart along x.
+fn two_poplars(apart_m: f32) -> PointCloud {
     let t = truth(Species::Poplar, 2);
     let one = simulate_als(
         &t,
@@ -518,14 +518,29 @@ fn two_separate_trees_give_a_flagged_best_effort() {
         2,
     );
     let mut points = one.points.clone();
-    points.extend(one.points.iter().map(|p| *p + Vec3::new(30.0, 0.0, 0.0)));
-    let two = PointCloud::from_points(one.offset, points);
-    let result = reconstruct(&two, &Params::default()).expect("best effort");
-    assert!(
-        result.notes.iter().any(|n| n.starts_with("best effort")),
-        "{:?}",
-        result.notes
-    );
+    points.extend(one.points.iter().map(|p| *p + Vec3::new(apart_m, 0.0, 0.0)));
+    PointCloud::from_points(one.offset, points)
+}
+
+#[test]
+fn two_separate_trees_are_refused_with_their_gap() {
+    let err = reconstruct(&two_poplars(30.0), &Params::default()).expect_err("two trees");
+    let ReconstructError::Disconnected { share_pct, gap_m } = err else {
+        panic!("{err}");
+    };
+    assert!((share_pct - 50.0).abs() < 1.0, "{share_pct}");
+    assert!(gap_m > 20.0 && gap_m < 30.0, "{gap_m}");
+    assert!(err.to_string().contains("one tree per file"), "{err}");
+}
+
+/// Crowns that touch, or nearly, cannot be told apart from one crown: the
+/// clip is reconstructed (one tree per clip is the caller's to ensure).
+#[test]
+fn crowns_that_nearly_touch_are_not_refused() {
+    for apart_m in [2.0, 4.0] {
+        let result = reconstruct(&two_poplars(apart_m), &Params::default());
+        assert!(result.is_ok(), "{apart_m} m: {:?}", result.err());
+    }
 }
 
 #[test]

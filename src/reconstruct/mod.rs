@@ -43,6 +43,7 @@ mod error;
 pub mod ground;
 mod ground_plane;
 pub mod metrics;
+mod parts;
 pub mod radii;
 mod upright;
 

@@ -10,7 +10,10 @@
 //! growth. The stages, each a short function citing its section:
 //!
 //! 1. [`crate::reconstruct::ground::split_ground`] removes the ground and
-//!    gives the terrain height (the ground plane of §4.2);
+//!    gives the terrain height (the ground plane of §4.2); a clip whose tree
+//!    points fall apart into two trees side by side is refused
+//!    (`check_one_tree`: our addition, since Eq. 3/4 would put one trunk
+//!    between them);
 //! 2. `add_trunk` — §4.2, Eq. 3/4 with the λ1/λ2 rule, continued as a
 //!    leader to the apex (our addition, see [`Params::leader`]);
 //! 3. `thin` — §5.1, voxel downsampling and sequential thinning, then one
@@ -47,6 +50,7 @@ use super::ground::{GroundMethod, GroundSplit, split_ground};
 use crate::cloud::PointCloud;
 use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
+use crate::spatial::PointIndex;
 
 mod direction;
 mod graph;
@@ -64,6 +68,35 @@ const MIN_VISITED_SHARE: f32 = 0.85;
 /// How far below the 1st percentile of height a point may lie before it
 /// counts as a low outlier when there is no terrain (metres).
 const LOW_OUTLIER_M: f32 = 1.0;
+
+/// A part of the tree points this far from the rest, or farther, is not
+/// the same tree ([`check_one_tree`]), in metres…
+///
+/// Measured on the tree points (more than 0.5 m above the flat ground) of
+/// synthetic AHN-like clips (`silva synth --scan als`, each species,
+/// seeds 1–25 leaf-off and leaf-on at 20 points/m², seeds 1–10 at 5 and at
+/// 2 points/m²; single linkage in a Python prototype): the widest gap that
+/// splits off a tenth of one tree's points was 1.5 m at 20 points/m², 2.2 m
+/// at 5 and 5.9 m at 2 (a poplar, its spacing 1.5 m), at most 5.4 median
+/// point spacings; on tiny.xyz 0.8 m (3.4 spacings), and ahn3_delft does
+/// not split at all.
+const DETACHED_GAP_M: f32 = 3.0;
+
+/// …or this many median point spacings, if longer: the sparser the scan,
+/// the farther apart its hits on one crown lie (see [`DETACHED_GAP_M`]).
+const DETACHED_GAP_SPACINGS: f32 = 10.0;
+
+/// …when it holds at least this share of the points, as the dense
+/// pipeline's `Params::detached_share`, and stands beside the rest rather
+/// than above or below it. Smaller parts stay (a piece of a neighbour's
+/// crown at the clip's edge), and so do parts above or below: a crown over
+/// ground that was not found, stem returns far under a crown (which the
+/// trunk step reads), a sparse crown's top. At 2 points/m², where a
+/// synthetic tree holds 20–90 returns and the ground is not always found,
+/// the share alone refused 16 of 200 clips (`silva eval --synthetic 100
+/// --scan als --density 2`, seeds 1–100 and 101–200), parts 4–11 m above
+/// or below the rest; beside the rest, none (nor at 5 points/m²).
+const DETACHED_SHARE: f32 = 0.1;
 
 /// Smallest spread (standard deviation, metres) along the second and third
 /// principal axes for a cloud to be a volume rather than a line or a plane.
@@ -240,6 +273,7 @@ pub fn reconstruct_within(
     interrupt.check("trunk completion")?;
     let tree = &without_low_outliers(&split, &mut notes);
     super::check_height(tree)?;
+    check_one_tree(tree)?;
     let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
     notes.push(trunk.note());
     let trunk_points_added = trunk.points.len();
@@ -346,6 +380,32 @@ fn produce(
         ));
     }
     Ok(produced)
+}
+
+/// Rejects a clip whose tree points fall apart into parts too far apart to
+/// be one tree (see [`DETACHED_GAP_M`]): two trees in one clip, which the
+/// trunk step (Eq. 3/4) and Algorithm 2 would read as one, with a trunk
+/// between them. The dense pipeline rejects them with the same error when
+/// it connects its graph.
+fn check_one_tree(points: &[Vec3]) -> Result<(), ReconstructError> {
+    let Some(part) = super::parts::detached_part(points, DETACHED_GAP_M) else {
+        return Ok(());
+    };
+    let share = part.points as f32 / points.len() as f32;
+    if share < DETACHED_SHARE || !part.beside() {
+        return Ok(());
+    }
+    let spacing_m = PointIndex::new(points)
+        .median_spacing(points)
+        .unwrap_or(0.0);
+    let gap_m = part.gap_m(points);
+    if gap_m < DETACHED_GAP_SPACINGS * spacing_m {
+        return Ok(());
+    }
+    Err(ReconstructError::Disconnected {
+        share_pct: 100.0 * share,
+        gap_m,
+    })
 }
 
 /// The finite points of `cloud` with their classification (the only
