@@ -81,15 +81,19 @@ pub(crate) fn detached_part(points: &[Vec3], gap_m: f32) -> Option<Detached> {
     let mut by_size: Vec<(usize, u32)> = sizes.into_iter().map(|(p, n)| (n, p)).collect();
     by_size.sort_unstable_by(|a, b| b.cmp(a));
     let &(points_in_part, part) = by_size.get(1)?;
-    let mut detached = Detached {
-        points: points_in_part,
-        part_z: (0.0, 0.0),
-        rest_z: (0.0, 0.0),
-        members: part_of.iter().map(|&p| p == part).collect(),
+    let members: Vec<bool> = part_of.iter().map(|&p| p == part).collect();
+    let side = |inside: bool| {
+        points
+            .iter()
+            .zip(&members)
+            .filter(move |(_, m)| **m == inside)
     };
-    let (inside, outside) = detached.split(points);
-    (detached.part_z, detached.rest_z) = (z_range(&inside), z_range(&outside));
-    Some(detached)
+    Some(Detached {
+        points: points_in_part,
+        part_z: z_range(side(true).map(|(p, _)| p)),
+        rest_z: z_range(side(false).map(|(p, _)| p)),
+        members,
+    })
 }
 
 /// Each point's cube (of edge `edge_m`) as a dense index, and the cubes
