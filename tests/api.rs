@@ -1140,3 +1140,46 @@ async fn a_cloud_lying_on_its_side_is_a_422_naming_the_axis() {
     })
     .await;
 }
+
+/// Two trees in one airborne clip (an oak scanned twice, 25 m apart) are
+/// refused as separate clusters with a 422 that gives their gap and tells
+/// the user to split the cloud, instead of one tree with a trunk between
+/// them; no model is made, and the scan stays for a retry.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_trees_in_one_airborne_clip_are_a_422() {
+    let tree = silva::synth::generate(
+        &silva::synth::TreeParams::preset(silva::synth::Species::Oak),
+        3,
+        silva::skeleton::Anchor::at(ORIGIN),
+    );
+    let clip = silva::synth::simulate_als(&tree, &Default::default(), 3);
+    let apart = glam::Vec3::new(25.0, 0.0, 0.0);
+    let two = clip.points.iter().flat_map(|&p| [p, p + apart]).collect();
+    let cloud = silva::cloud::PointCloud::from_points(clip.offset, two);
+    let scan = silva::cloud::to_laz_bytes(&cloud).unwrap();
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let res = srv.upload("mode=airborne&wait=true", &scan).await;
+            let problem = assert_problem(res, 422).await;
+            assert_eq!(problem["type"], "urn:silva:problem:unprocessable-cloud");
+            let detail = problem["detail"].as_str().unwrap();
+            assert!(
+                detail.contains("separate clusters") && detail.contains("one tree per file"),
+                "{problem}"
+            );
+            // The scan is kept for a retry (the detail names its job), with
+            // no model made from it.
+            assert!(detail.contains("(job "), "{problem}");
+            let trees: Value = srv.get("/v1/trees").await.json().await.unwrap();
+            assert_eq!(trees["numberReturned"], 1, "{trees}");
+            assert!(
+                trees["features"][0]["properties"]["model"].is_null(),
+                "{trees}"
+            );
+            srv.stop().await;
+        }
+    })
+    .await;
+}

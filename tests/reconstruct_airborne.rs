@@ -723,6 +723,32 @@ fn a_clip_without_ground_turned_over_is_flagged() {
     }
 }
 
+/// A clip cut without its ground and tilted by 30° reads as upright: no
+/// upright test can tell (see the `upright` module docs), so the
+/// reconstruction states the assumption instead, for the upright clip and
+/// the tilted one alike. A clip with its ground is checked against it and
+/// gets no such note.
+#[test]
+fn a_clip_without_ground_states_the_unchecked_upright_axis() {
+    let unchecked = |cloud: &PointCloud| {
+        let result = reconstruct(cloud, &Params::default()).expect("a best effort");
+        result
+            .notes
+            .iter()
+            .any(|n| n.starts_with("upright not checked") && n.contains("+z as up"))
+    };
+    for (species, seed) in [(Species::Oak, 3), (Species::Birch, 2), (Species::Pine, 3)] {
+        let tree = clip_without_ground(species, seed);
+        assert!(unchecked(&tree), "{species:?} {seed} upright");
+        assert!(
+            unchecked(&turned_about_x(&tree, 30.0)),
+            "{species:?} {seed} tilted by 30°"
+        );
+    }
+    let with_ground = simulate_als(&truth(Species::Oak, 3), &AlsOptions::default(), 3);
+    assert!(!unchecked(&with_ground), "a clip with its ground");
+}
+
 /// A clip cut without its ground and lying on its side (exported with `x`
 /// or `y` up, as mesh and game tools write it) has neither terrain nor bark
 /// to tell which way is up; its crown's top, hit all round and most, now

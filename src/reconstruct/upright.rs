@@ -35,8 +35,10 @@
 //! lies at one side: [`seen_from_beside`] notes the side end that looks
 //! like the top.
 //!
-//! Such a clip tilted by 20–60° goes unflagged. One test was
-//! measured and not adopted (2026-12-07, a Python prototype): the scanner's
+//! Such a clip tilted by 20–60° cannot be told from an upright one, so
+//! the airborne pipeline states the assumption in a note on every clip
+//! without ground that no test flagged ("upright not checked: … takes +z
+//! as up"). One test was measured and not adopted (2026-12-07, a Python prototype): the scanner's
 //! side as the direction from the Steiner point of the clip's hull (three
 //! times the mean over 400 directions u of max p·u times u, which turns
 //! with the cloud) to the points' centroid. On 200 synthetic AHN-like clips

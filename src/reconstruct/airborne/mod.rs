@@ -98,6 +98,13 @@ const DETACHED_GAP_SPACINGS: f32 = 10.0;
 /// or below the rest; beside the rest, none (nor at 5 points/m²).
 const DETACHED_SHARE: f32 = 0.1;
 
+/// The note of a clip without ground that no upright test flagged: such a
+/// clip turned by 20–60° reads as upright (see the [`super::upright`]
+/// module docs), so the assumption is stated rather than checked.
+const UPRIGHT_UNCHECKED: &str = "upright not checked: with no ground in the clip, silva takes \
+     +z as up, as in a georeferenced clip; a clip tilted by less than about 60° cannot be told \
+     from an upright one without ground, and its height and trunk base would be measured askew";
+
 /// Smallest spread (standard deviation, metres) along the second and third
 /// principal axes for a cloud to be a volume rather than a line or a plane.
 const MIN_SPREAD_M: f32 = 0.05;
@@ -339,12 +346,13 @@ fn separated(
     check_volume(&split.tree.points)?;
     if split.method == GroundMethod::None {
         let tree = &split.tree.points;
-        notes.extend(
+        notes.push(
             super::ground_plane::tilted_ground(tree)
                 .map(|g| g.note())
                 .or_else(|| super::upright::seen_from_below(tree))
                 .or_else(|| super::upright::trunk_on_top(tree))
-                .or_else(|| super::upright::seen_from_beside(tree)),
+                .or_else(|| super::upright::seen_from_beside(tree))
+                .unwrap_or_else(|| UPRIGHT_UNCHECKED.to_owned()),
         );
     }
     Ok((finite, split))
