@@ -159,6 +159,25 @@ fn garbage_is_an_unknown_format() {
     );
 }
 
+/// A skeleton, LsJSON or CityJSON document sent where a cloud belongs is
+/// named as JSON, not read as XYZ lines that are too long or not numbers.
+#[test]
+fn json_is_named_as_json_not_read_as_xyz() {
+    for json in [
+        &b"{\"lsjson_version\": 1, \"axiom\": \"F(1)\"}"[..],
+        b"\xef\xbb\xbf\n  [1.0, 2.0, 3.0]\n",
+        b"\r\n{}",
+    ] {
+        let err = read_bytes(json, &ReadOptions::default()).unwrap_err();
+        assert!(
+            matches!(&err, CloudError::UnknownFormat(m) if m.contains("is JSON")),
+            "{err}"
+        );
+    }
+    let xyz = read_bytes(b"# {not json}\n1 2 3\n", &ReadOptions::default());
+    assert_eq!(xyz.map(|(cloud, _)| cloud.len()).ok(), Some(1));
+}
+
 #[test]
 fn garbage_after_las_signature_is_a_header_error() {
     let reason = assert_malformed(

@@ -144,8 +144,25 @@ pub fn read_with_details<R: Read + Seek + Send + Sync>(
             hex_preview(&head)
         ))
     })?;
+    if format == Format::Xyz && looks_like_json(&head) {
+        return Err(CloudError::UnknownFormat(
+            "the input is JSON (a skeleton, LsJSON or CityJSON document?), not a point cloud"
+                .to_owned(),
+        ));
+    }
     input.seek(SeekFrom::Start(start))?;
     read_as_with_details(input, format, opts)
+}
+
+/// Whether text starts like a JSON document: with `{` or `[` after any
+/// byte-order mark and white space, which no XYZ line does (a comment
+/// starts with `#` or `//`, a header row with a letter, a point with a
+/// number).
+fn looks_like_json(head: &[u8]) -> bool {
+    let text = head.strip_prefix("\u{feff}".as_bytes()).unwrap_or(head);
+    text.iter()
+        .find(|b| !b.is_ascii_whitespace())
+        .is_some_and(|b| matches!(b, b'{' | b'['))
 }
 
 /// Reads input known to be in `format`, skipping detection (fuzzing, tests).
