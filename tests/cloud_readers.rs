@@ -159,6 +159,21 @@ fn garbage_is_an_unknown_format() {
     );
 }
 
+/// An XYZ file that a Windows editor saved with a UTF-8 byte-order mark
+/// reads as without it; a mark anywhere else is still not a number.
+#[test]
+fn a_byte_order_mark_at_the_start_of_xyz_is_skipped() {
+    let (cloud, format) = read_bytes(
+        b"\xef\xbb\xbf155000.5 463000 1\n155001 463000 2\n",
+        &ReadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!((format, cloud.len()), (Format::Xyz, 2));
+    assert_eq!(cloud.absolute(0).x, 155000.5);
+    let err = read_bytes(b"1 2 3\n\xef\xbb\xbf4 5 6\n", &ReadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("line 2: not a number"), "{err}");
+}
+
 /// A skeleton, LsJSON or CityJSON document sent where a cloud belongs is
 /// named as JSON, not read as XYZ lines that are too long or not numbers.
 #[test]

@@ -1,7 +1,8 @@
 //! XYZ/TXT text reader and writer: one point per line, `x y z` first.
 //!
 //! Fields are separated by spaces, tabs or commas; columns after the third
-//! are ignored; `#` starts a comment (so does a leading `//`, which is how
+//! are ignored; a UTF-8 byte-order mark at the start is skipped; `#`
+//! starts a comment (so does a leading `//`, which is how
 //! CloudCompare writes its column header); blank lines are skipped and the
 //! last line may lack its newline. Lines are read with a length cap, so a
 //! file without newlines cannot make the reader buffer it whole.
@@ -15,6 +16,9 @@ use super::{CloudError, Format, Location, PointCloud};
 
 /// Longest accepted line in bytes; real XYZ lines are under 200.
 const MAX_LINE: usize = 4096;
+
+/// The UTF-8 byte-order mark, skipped at the start of a file.
+const BOM: &[u8] = "\u{feff}".as_bytes();
 
 /// Reads XYZ text from `input`.
 pub(super) fn read<R: Read>(input: R, opts: &ReadOptions) -> Result<PointCloud, CloudError> {
@@ -38,7 +42,12 @@ pub(super) fn read<R: Read>(input: R, opts: &ReadOptions) -> Result<PointCloud, 
                 format!("line longer than {MAX_LINE} bytes"),
             ));
         }
-        if let Some(p) = parse_line(&line).map_err(|reason| malformed(location, reason))? {
+        // A UTF-8 byte-order mark, as Windows editors write, is not data.
+        let text = match line_no {
+            1 => line.strip_prefix(BOM).unwrap_or(&line),
+            _ => &line,
+        };
+        if let Some(p) = parse_line(text).map_err(|reason| malformed(location, reason))? {
             builder.push(p, Attributes::default(), location)?;
         }
     }
