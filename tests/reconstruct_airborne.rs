@@ -533,14 +533,66 @@ fn two_separate_trees_are_refused_with_their_gap() {
     assert!(err.to_string().contains("one tree per file"), "{err}");
 }
 
-/// Crowns that touch, or nearly, cannot be told apart from one crown: the
-/// clip is reconstructed (one tree per clip is the caller's to ensure).
+/// Crowns that touch, or nearly, form one part: the clip is reconstructed,
+/// not refused (one tree per clip is the caller's to ensure; the next test
+/// shows the note such a clip may get).
 #[test]
 fn crowns_that_nearly_touch_are_not_refused() {
     for apart_m in [2.0, 4.0] {
         let result = reconstruct(&two_poplars(apart_m), &Params::default());
         assert!(result.is_ok(), "{apart_m} m: {:?}", result.err());
     }
+}
+
+/// The AHN-like clips (with ground) of two trees whose trunks stand
+/// `apart_m` apart along x, each clip's ground kept on its own side.
+fn two_clips(a: (Species, u64), b: (Species, u64), apart_m: f32) -> PointCloud {
+    let clip = |(species, seed): (Species, u64)| {
+        let opts = AlsOptions {
+            classify_ground: true,
+            ..AlsOptions::default()
+        };
+        simulate_als(&truth(species, seed), &opts, seed)
+    };
+    let (first, second) = (clip(a), clip(b));
+    let half = apart_m / 2.0;
+    let mut points = Vec::new();
+    for (cloud, shift) in [(&first, 0.0), (&second, apart_m)] {
+        let own_side = |x: f32| (x < half) == (shift == 0.0);
+        for (p, ground) in cloud.points.iter().zip(ground_labels(cloud)) {
+            let p = *p + Vec3::new(shift, 0.0, 0.0);
+            if !ground || own_side(p.x) {
+                points.push(p);
+            }
+        }
+    }
+    PointCloud::from_points(first.offset, points)
+}
+
+/// Two crowns that touch (an oak and a birch, trunks 12 m apart) show two
+/// tops with the canopy low between them: the clip is reconstructed as one
+/// tree (one part, so not refused), with a best-effort note that it may
+/// hold two. Each tree alone gets no such note. (Not every such pair is
+/// noted: this one is not at 10 m; see the `crown_tops` module docs.)
+#[test]
+fn touching_crowns_are_noted_as_maybe_two_trees() {
+    let two_tops = |cloud: &PointCloud| {
+        let result = reconstruct(cloud, &Params::default()).expect("a best effort");
+        result
+            .notes
+            .into_iter()
+            .find(|n| n.starts_with("best effort: the canopy has two tops"))
+    };
+    let (oak, birch) = ((Species::Oak, 3), (Species::Birch, 2));
+    for alone in [oak, birch] {
+        let cloud = simulate_als(&truth(alone.0, alone.1), &AlsOptions::default(), alone.1);
+        assert_eq!(two_tops(&cloud), None, "{alone:?}");
+    }
+    let note = two_tops(&two_clips(oak, birch, 12.0)).expect("a note on two crowns");
+    assert!(
+        note.contains("may hold two trees whose crowns touch"),
+        "{note}"
+    );
 }
 
 #[test]

@@ -38,6 +38,7 @@ use crate::interrupt::Interrupt;
 use crate::skeleton::Skeleton;
 
 pub mod airborne;
+mod crown_tops;
 pub mod dense;
 mod error;
 pub mod ground;

@@ -13,7 +13,9 @@
 //!    gives the terrain height (the ground plane of §4.2); a clip whose tree
 //!    points fall apart into two trees side by side is refused
 //!    (`check_one_tree`: our addition, since Eq. 3/4 would put one trunk
-//!    between them);
+//!    between them), and crowns that touch, which form one part, are
+//!    noted when the canopy shows two tops with a deep dip between them
+//!    (`two_crowns_note`, module `reconstruct::crown_tops`);
 //! 2. `add_trunk` — §4.2, Eq. 3/4 with the λ1/λ2 rule, continued as a
 //!    leader to the apex (our addition, see [`Params::leader`]);
 //! 3. `thin` — §5.1, voxel downsampling and sequential thinning, then one
@@ -46,7 +48,7 @@
 use glam::{DVec3, Vec3};
 
 use super::ReconstructError;
-use super::ground::{GroundMethod, GroundSplit, split_ground};
+use super::ground::{GroundMethod, GroundSplit, Terrain, split_ground};
 use crate::cloud::PointCloud;
 use crate::interrupt::Interrupt;
 use crate::skeleton::{Anchor, Skeleton};
@@ -281,6 +283,7 @@ pub fn reconstruct_within(
     let tree = &without_low_outliers(&split, &mut notes);
     super::check_height(tree)?;
     check_one_tree(tree)?;
+    notes.extend(two_crowns_note(tree, split.terrain.as_ref()));
     let trunk = trunk::add_trunk(tree, split.terrain.as_ref(), params);
     notes.push(trunk.note());
     let trunk_points_added = trunk.points.len();
@@ -414,6 +417,24 @@ fn check_one_tree(points: &[Vec3]) -> Result<(), ReconstructError> {
         share_pct: 100.0 * share,
         gap_m,
     })
+}
+
+/// A best-effort note when the canopy shows two crowns that touch
+/// ([`super::crown_tops`]): one part, so [`check_one_tree`] lets it pass,
+/// but two tops with the canopy low between them. Heights are taken above
+/// the terrain, or above the lowest tree point when there is none.
+fn two_crowns_note(tree: &[Vec3], terrain: Option<&Terrain>) -> Option<String> {
+    let lowest = tree.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
+    let heights: Vec<Vec3> = tree
+        .iter()
+        .map(|p| {
+            let ground = terrain.map_or(lowest, |t| t.height_at(p.x, p.y));
+            p.with_z(p.z - ground)
+        })
+        .collect();
+    super::crown_tops::two_crowns(&heights)
+        .filter(|tops| tops.dip() >= super::crown_tops::TWO_CROWNS_DIP)
+        .map(|tops| tops.note())
 }
 
 /// The finite points of `cloud` with their classification (the only
