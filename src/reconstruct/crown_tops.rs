@@ -156,13 +156,12 @@ impl Grid {
             ),
             |(lo, hi), p| (lo.min(p.truncate()), hi.max(p.truncate())),
         );
-        let margin = (3.0 * SMOOTHING_M / cell_m).ceil() as usize;
-        let span = ((max - min) / cell_m).floor();
-        let columns = span.x as usize + 1 + 2 * margin;
-        let rows = span.y as usize + 1 + 2 * margin;
-        if columns.saturating_mul(rows) > MAX_CELLS {
+        let margin = (3.0 * SMOOTHING_M / cell_m).ceil();
+        let span = ((max - min) / cell_m).floor() + 1.0 + 2.0 * margin;
+        if span.x * span.y > MAX_CELLS as f32 {
             return None;
         }
+        let (columns, rows, margin) = (span.x as usize, span.y as usize, margin as usize);
         let mut height = vec![0.0f32; columns * rows];
         for p in canopy {
             let c = ((p.truncate() - min) / cell_m).floor();
@@ -334,5 +333,7 @@ mod tests {
         assert_eq!(two_crowns(&[Vec3::new(0.0, 0.0, 0.5)]), None);
         assert_eq!(two_crowns(&[Vec3::new(0.0, 0.0, 8.0)]), None);
         assert_eq!(two_crowns(&[Vec3::new(f32::NAN, 0.0, 8.0)]), None);
+        let far = [Vec3::new(-1e30, 0.0, 8.0), Vec3::new(1e30, 1e30, 9.0)];
+        assert_eq!(two_crowns(&far), None);
     }
 }
