@@ -159,7 +159,7 @@ pub fn read_with_details<R: Read + Seek + Send + Sync>(
 /// starts with `#` or `//`, a header row with a letter, a point with a
 /// number).
 fn looks_like_json(head: &[u8]) -> bool {
-    let text = head.strip_prefix("\u{feff}".as_bytes()).unwrap_or(head);
+    let text = head.strip_prefix(super::xyz::BOM).unwrap_or(head);
     text.iter()
         .find(|b| !b.is_ascii_whitespace())
         .is_some_and(|b| matches!(b, b'{' | b'['))

@@ -18,7 +18,7 @@ use super::{CloudError, Format, Location, PointCloud};
 const MAX_LINE: usize = 4096;
 
 /// The UTF-8 byte-order mark, skipped at the start of a file.
-const BOM: &[u8] = "\u{feff}".as_bytes();
+pub(super) const BOM: &[u8] = "\u{feff}".as_bytes();
 
 /// Reads XYZ text from `input`.
 pub(super) fn read<R: Read>(input: R, opts: &ReadOptions) -> Result<PointCloud, CloudError> {
