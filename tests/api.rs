@@ -1156,17 +1156,58 @@ async fn two_trees_in_one_airborne_clip_are_a_422() {
     let apart = glam::Vec3::new(25.0, 0.0, 0.0);
     let two = clip.points.iter().flat_map(|&p| [p, p + apart]).collect();
     let cloud = silva::cloud::PointCloud::from_points(clip.offset, two);
+    two_trees_are_a_422(cloud, "mode=airborne&wait=true", "separate clusters").await;
+}
+
+/// Two trees whose crowns touch in one terrestrial scan (synthetic oak 3
+/// and birch 2, trunks 4 m apart) are refused for their two stems, with a
+/// 422 that says where they stand; as for two airborne trees, no model is
+/// made and the scan stays for a retry.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_trees_whose_crowns_touch_are_a_422() {
+    use silva::synth::{Species, TreeParams, generate, simulate_tls};
+    let scan_of = |species, seed| {
+        let tree = generate(
+            &TreeParams::preset(species),
+            seed,
+            silva::Anchor::at(ORIGIN),
+        );
+        simulate_tls(&tree, &Default::default(), seed)
+    };
+    let oak = scan_of(Species::Oak, 3);
+    let birch = scan_of(Species::Birch, 2);
+    let apart = glam::Vec3::new(4.0, 0.0, 0.0);
+    let mut two = oak.points.clone();
+    two.extend(birch.points.iter().map(|&p| p + apart));
+    let cloud = silva::cloud::PointCloud::from_points(oak.offset, two);
+    two_trees_are_a_422(
+        cloud,
+        "mode=dense&wait=true",
+        "2 stems: two of them 4.0 m apart",
+    )
+    .await;
+}
+
+/// Uploads `cloud` (as LAZ) with `query` on both stores and checks the
+/// answer: a 422 problem whose detail holds `reason` and tells the user to
+/// split the cloud, and names the job; the tree record stays, with no
+/// model.
+async fn two_trees_are_a_422(
+    cloud: silva::cloud::PointCloud,
+    query: &'static str,
+    reason: &'static str,
+) {
     let scan = silva::cloud::to_laz_bytes(&cloud).unwrap();
     on_both(|url| {
         let scan = scan.clone();
         async move {
             let srv = TestServer::start(config(&url)).await;
-            let res = srv.upload("mode=airborne&wait=true", &scan).await;
+            let res = srv.upload(query, &scan).await;
             let problem = assert_problem(res, 422).await;
             assert_eq!(problem["type"], "urn:silva:problem:unprocessable-cloud");
             let detail = problem["detail"].as_str().unwrap();
             assert!(
-                detail.contains("separate clusters") && detail.contains("one tree per file"),
+                detail.contains(reason) && detail.contains("one tree per file"),
                 "{problem}"
             );
             // The scan is kept for a retry (the detail names its job), with

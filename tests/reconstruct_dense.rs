@@ -270,6 +270,54 @@ fn two_separate_trees_are_an_error() {
     assert!(matches!(e, ReconstructError::Disconnected { .. }), "{e}");
 }
 
+/// Two trees whose crowns touch (a synthetic oak and birch, trunks 4 m
+/// apart, as one terrestrial scan) join into one graph: no gap separates
+/// them. They are refused for their two stems, with where they stand;
+/// before, the birch became a branch of the oak hanging down to the ground.
+/// In a clip of one tree and a limb that rests on the ground, see
+/// `parts::standing_stems`' unit tests.
+#[test]
+fn two_trees_whose_crowns_touch_are_refused_for_their_stems() {
+    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+    let scan_of = |species, seed| {
+        let truth = generate(
+            &TreeParams::preset(species),
+            seed,
+            silva::Anchor::at(OFFSET),
+        );
+        simulate_tls(&truth, &TlsOptions::default(), seed)
+    };
+    let oak = scan_of(Species::Oak, 3);
+    let birch = scan_of(Species::Birch, 2);
+    let apart = Vec3::new(4.0, 0.0, 0.0);
+    let mut points = oak.points.clone();
+    points.extend(birch.points.iter().map(|&p| p + apart));
+    let pair = PointCloud::from_points(OFFSET, points);
+    let e = reconstruct(&pair, &dense()).unwrap_err();
+    let ReconstructError::SeveralStems {
+        stems,
+        apart_m,
+        first,
+        second,
+    } = e
+    else {
+        panic!("expected two stems, got: {e}");
+    };
+    assert_eq!(stems, 2);
+    assert!((apart_m - 4.0).abs() < 0.1, "{apart_m}");
+    for (stem, at) in [(first, OFFSET), (second, OFFSET + apart.as_dvec3())] {
+        assert!((stem[0] - at.x).hypot(stem[1] - at.y) < 0.1, "{stem:?}");
+    }
+    let message = e.to_string();
+    assert!(
+        message.contains("2 stems") && message.contains("one tree per file"),
+        "{message}"
+    );
+    for single in [oak, birch] {
+        assert!(reconstruct(&single, &dense()).is_ok());
+    }
+}
+
 #[test]
 fn a_lying_or_upside_down_tree_is_an_error() {
     let pts = scan(&y_tree(), 0.03, 6);

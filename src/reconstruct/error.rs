@@ -28,6 +28,28 @@ pub enum ReconstructError {
         /// Smallest gap between the detached part and the tree, in metres.
         gap_m: f32,
     },
+    /// The cloud stands on two or more stems apart from each other: trees
+    /// whose crowns touch, so that no gap separates them.
+    #[error(
+        "the cloud stands on {stems} stems: two of them {apart_m:.1} m apart, at x {x1:.2}, y \
+         {y1:.2} and at x {x2:.2}, y {y2:.2}, so it holds trees whose crowns touch, or one tree \
+         forked at the ground (silva assumes the z axis points up and the cloud holds one \
+         upright tree; split the cloud into one tree per file)",
+        x1 = .first[0],
+        y1 = .first[1],
+        x2 = .second[0],
+        y2 = .second[1]
+    )]
+    SeveralStems {
+        /// Stems at least a metre apart.
+        stems: usize,
+        /// Distance between the centres of the two largest, in metres.
+        apart_m: f32,
+        /// Horizontal centre of the largest stem, in the cloud's coordinates.
+        first: [f64; 2],
+        /// Horizontal centre of the second largest.
+        second: [f64; 2],
+    },
     /// The tree points span more height than any tree has.
     #[error(
         "the tree points span {height_m:.0} m in height, more than any tree ({max_m:.0} m at \

@@ -5,9 +5,13 @@
 //! the graph anyway); the airborne pipeline asks [`detached_part`] before
 //! it builds anything, since its trunk (Eq. 3/4) and its graph would
 //! otherwise join the parts into one tree.
+//!
+//! Two trees whose crowns touch are one part. A dense scan still sees them
+//! stand on two stems: [`standing_stems`] finds the stems at the foot of
+//! the cloud.
 
 use foldhash::{HashMap, HashMapExt};
-use glam::{I64Vec3, Vec3};
+use glam::{I64Vec3, Vec2, Vec3};
 
 use super::dense::UnionFind;
 use super::z_range;
@@ -96,6 +100,146 @@ pub(crate) fn detached_part(points: &[Vec3], gap_m: f32) -> Option<Detached> {
     })
 }
 
+/// Height of the band at the foot of a cloud in which [`standing_stems`]
+/// looks for stems, in metres: breast height, under the crowns of most
+/// trees (an inventory measures each stem's DBH there).
+pub(crate) const STEM_BAND_M: f32 = 1.3;
+
+/// Points of the foot band nearer than this (metres) belong to one stem.
+const STEM_LINK_M: f32 = 0.25;
+
+/// A stem rises through at least this share of [`STEM_BAND_M`]: a twig
+/// hanging into the band, or a stone or stump, does not.
+const STEM_RISE_SHARE: f32 = 0.7;
+
+/// A stem leans at most this far from vertical in the band, in degrees
+/// (the drift of its upper half's centroid from its lower half's): a limb
+/// whose far end rests on the ground slants through the band (one of a
+/// synthetic oak's, over a 20° slope, at 50°), a stem stands. Trunks
+/// leaning more are flagged by the upright check in any case.
+const MAX_STEM_LEAN_DEG: f32 = 30.0;
+
+/// A stem holds at least this many points of the band.
+const MIN_STEM_POINTS: usize = 20;
+
+/// A stem holds at least this share of the band points of the largest
+/// stem: a sapling or a fallen twig beside a trunk does not count.
+const MIN_STEM_SHARE: f32 = 0.1;
+
+/// A stem standing on the ground, as [`standing_stems`] finds it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Stem {
+    /// Horizontal centroid of the stem's points in the foot band.
+    pub(crate) centre: Vec2,
+    /// Points of the stem in the foot band.
+    pub(crate) points: usize,
+}
+
+/// The stems a dense cloud stands on, largest first: the parts of the
+/// points of the foot band (heights up to [`STEM_BAND_M`] above `lowest`;
+/// `heights[i]` is point `i`'s height, above the terrain where there is
+/// one) that lie at least [`STEM_LINK_M`] apart horizontally, and are
+/// shaped like a stem:
+/// - they rise through [`STEM_RISE_SHARE`] of the band,
+/// - they are no wider than a trunk (twice [`MAX_TRUNK_RADIUS_M`]),
+/// - they lean at most [`MAX_STEM_LEAN_DEG`] from vertical,
+/// - they hold [`MIN_STEM_POINTS`] points, and [`MIN_STEM_SHARE`] of the
+///   largest stem's.
+///
+/// A tree stands on one stem (or on several within a metre or so, when it
+/// forks at the ground); two trees whose crowns touch stand on two stems
+/// metres apart. The parts are found as in [`detached_part`], with cubes
+/// one layer high.
+///
+/// [`MAX_TRUNK_RADIUS_M`]: super::radii::MAX_TRUNK_RADIUS_M
+pub(crate) fn standing_stems(points: &[Vec3], heights: &[f32], lowest: f32) -> Vec<Stem> {
+    let band: Vec<(Vec3, f32)> = points
+        .iter()
+        .zip(heights)
+        .filter(|&(_, &h)| h <= lowest + STEM_BAND_M)
+        .map(|(p, &h)| (p.truncate().extend(0.0), h - lowest))
+        .collect();
+    let flat: Vec<Vec3> = band.iter().map(|&(p, _)| p).collect();
+    let (cell_of, mut cells) = touching_cubes(&flat, STEM_LINK_M);
+    let mut parts: HashMap<u32, FootPart> = HashMap::new();
+    for (&(p, h), &cell) in band.iter().zip(&cell_of) {
+        parts
+            .entry(cells.find(cell))
+            .or_insert_with(FootPart::new)
+            .add(p.truncate(), h);
+    }
+    let mut stems: Vec<Stem> = parts.values().filter_map(FootPart::stem).collect();
+    stems.sort_unstable_by_key(|s| std::cmp::Reverse(s.points));
+    let largest = stems.first().map_or(0, |s| s.points);
+    stems.retain(|s| s.points as f32 >= MIN_STEM_SHARE * largest as f32);
+    stems
+}
+
+/// What [`standing_stems`] gathers of one part of the foot band: its
+/// points, their horizontal sum and bounding box, and their height range;
+/// and the sums of position and height of the points in the lower and the
+/// upper half of the band.
+#[derive(Debug)]
+struct FootPart {
+    points: usize,
+    sum: Vec2,
+    halves: [(usize, Vec3); 2],
+    min_xy: Vec2,
+    max_xy: Vec2,
+    min_h: f32,
+    max_h: f32,
+}
+
+impl FootPart {
+    fn new() -> Self {
+        FootPart {
+            points: 0,
+            sum: Vec2::ZERO,
+            halves: [(0, Vec3::ZERO); 2],
+            min_xy: Vec2::INFINITY,
+            max_xy: Vec2::NEG_INFINITY,
+            min_h: f32::INFINITY,
+            max_h: f32::NEG_INFINITY,
+        }
+    }
+
+    fn add(&mut self, xy: Vec2, height: f32) {
+        self.points += 1;
+        self.sum += xy;
+        let half = &mut self.halves[usize::from(height >= 0.5 * STEM_BAND_M)];
+        half.0 += 1;
+        half.1 += xy.extend(height);
+        self.min_xy = self.min_xy.min(xy);
+        self.max_xy = self.max_xy.max(xy);
+        self.min_h = self.min_h.min(height);
+        self.max_h = self.max_h.max(height);
+    }
+
+    /// The part as a stem, if it is shaped like one.
+    fn stem(&self) -> Option<Stem> {
+        let width = (self.max_xy - self.min_xy).max_element();
+        let is_stem = self.points >= MIN_STEM_POINTS
+            && self.max_h - self.min_h >= STEM_RISE_SHARE * STEM_BAND_M
+            && width <= 2.0 * super::radii::MAX_TRUNK_RADIUS_M
+            && self.lean_deg() <= MAX_STEM_LEAN_DEG;
+        is_stem.then(|| Stem {
+            centre: self.sum / self.points as f32,
+            points: self.points,
+        })
+    }
+
+    /// The angle from vertical of the line from the lower half's centroid
+    /// to the upper half's, in degrees; 90 when a half is empty.
+    fn lean_deg(&self) -> f32 {
+        let [(n_low, low), (n_high, high)] = self.halves;
+        if n_low == 0 || n_high == 0 {
+            return 90.0;
+        }
+        let rise = high / n_high as f32 - low / n_low as f32;
+        rise.truncate().length().atan2(rise.z).to_degrees()
+    }
+}
+
 /// Each point's cube (of edge `edge_m`) as a dense index, and the cubes
 /// joined where they touch.
 fn touching_cubes(points: &[Vec3], edge_m: f32) -> (Vec<u32>, UnionFind) {
@@ -150,6 +294,59 @@ mod tests {
                 centre + dir.normalize_or(Vec3::Z) * ((t * 0.11).sin().abs())
             })
             .collect()
+    }
+
+    /// Points on the bark of a vertical stem of `radius` standing at
+    /// `foot`, `height` m tall, one per 5 cm of girth and of height.
+    fn stem(foot: Vec2, radius: f32, height: f32) -> Vec<Vec3> {
+        let around = (std::f32::consts::TAU * radius / 0.05).ceil() as usize;
+        let up = (height / 0.05) as usize;
+        (0..around * up)
+            .map(|i| {
+                let angle = std::f32::consts::TAU * (i % around) as f32 / around as f32;
+                let z = 0.05 * (i / around) as f32;
+                (foot + radius * Vec2::from_angle(angle)).extend(z)
+            })
+            .collect()
+    }
+
+    /// `standing_stems` with heights above a level ground at z = 0.
+    fn stems_of(points: &[Vec3]) -> Vec<Stem> {
+        let heights: Vec<f32> = points.iter().map(|p| p.z).collect();
+        standing_stems(points, &heights, 0.0)
+    }
+
+    #[test]
+    fn two_trunks_are_two_stems_largest_first() {
+        let mut pts = stem(Vec2::ZERO, 0.3, 4.0);
+        pts.extend(stem(Vec2::new(5.0, 1.0), 0.15, 4.0));
+        // Their crowns touch: a bridge of points joins them at 3 m.
+        pts.extend((0..100).map(|i| Vec3::new(0.05 * i as f32, 0.01 * i as f32, 3.0)));
+        let stems = stems_of(&pts);
+        assert_eq!(stems.len(), 2, "{stems:?}");
+        assert!(stems[0].points > stems[1].points);
+        assert!(stems[0].centre.length() < 0.01, "{stems:?}");
+        assert!(
+            stems[1].centre.distance(Vec2::new(5.0, 1.0)) < 0.01,
+            "{stems:?}"
+        );
+    }
+
+    #[test]
+    fn a_limb_on_the_ground_a_sapling_or_a_stone_is_no_stem() {
+        let mut pts = stem(Vec2::ZERO, 0.3, 4.0);
+        // A limb from the trunk at 3 m down to the ground 3 m away, at 45°.
+        pts.extend((0..300).map(|i| {
+            let t = i as f32 / 300.0;
+            Vec3::new(0.5 + 2.5 * t, 0.02 * (i % 5) as f32, 3.0 * (1.0 - t))
+        }));
+        // A sapling with a tenth of the trunk's points in the band.
+        pts.extend(stem(Vec2::new(-3.0, 0.0), 0.02, 1.5));
+        // A stone: 40 points, 0.3 m high.
+        pts.extend((0..40).map(|i| Vec3::new(2.0, -2.0 + 0.01 * i as f32, 0.3 * (i % 2) as f32)));
+        let stems = stems_of(&pts);
+        assert_eq!(stems.len(), 1, "{stems:?}");
+        assert_eq!(stems_of(&[]), vec![]);
     }
 
     #[test]

@@ -15,9 +15,12 @@
 //!    edges per point);
 //! 2. `graph`: a k-nearest-neighbour graph (in place of AdTree's 3D
 //!    Delaunay graph), made connected by bridging components at their
-//!    closest pairs, and Dijkstra's shortest-path tree from the trunk base
-//!    (every point of the lowest slice is a source, so the distance fronts
-//!    start level instead of spreading from one bark point);
+//!    closest pairs (a large part too far to bridge is refused as a second
+//!    tree), checks that the points stand upright on one stem
+//!    (`check_one_stem`: two trees whose crowns touch are one graph, on two
+//!    stems), and Dijkstra's shortest-path tree from the trunk base (every
+//!    point of the lowest slice is a source, so the distance fronts start
+//!    level instead of spreading from one bark point);
 //! 3. `skeletonize`: cross-sections of equal geodesic distance collapse to
 //!    skeleton nodes at branch centres (centroids; on thick one-sided
 //!    sections, the centre of a fitted circle), with the arcs of one stem
@@ -72,11 +75,11 @@
 
 use glam::Vec3;
 
-use super::ReconstructError;
 use super::ground::{GroundMethod, Terrain, split_ground};
 use super::radii::{
     MAX_TRUNK_RADIUS_M, MIN_TRUNK_SECTORS, circle_rms, robust_circle, trunk_sectors_seen,
 };
+use super::{ReconstructError, parts};
 use crate::cloud::PointCloud;
 use crate::cloud::clean::{occupied_voxels, voxel_downsample};
 use crate::interrupt::Interrupt;
@@ -94,6 +97,11 @@ mod twins;
 
 pub(crate) use graph::UnionFind;
 pub(crate) use simplify::point_segment_distance;
+
+/// Stems of a cloud at least this far apart (metres, centre to centre)
+/// are two trees ([`check_one_stem`]); nearer ones can be one tree forked
+/// at the ground, or a coppice stool.
+const MIN_STEMS_APART_M: f32 = 1.0;
 
 /// Bark points closer than this many point spacings belong to one piece of
 /// bark in the upside-down test ([`super::upright`]).
@@ -565,8 +573,13 @@ pub fn reconstruct(
     interrupt.check("clean-up")?;
     let mut notes = Vec::new();
     let (points, ground) = cleaned_points(cloud, params, &mut notes)?;
-    let mut graph = neighbour_graph(points, &ground, params, interrupt, &mut notes)?;
-    let (sources, root, foot) = trunk_base(&graph.points, graph.bin_m, ground.terrain.as_ref());
+    let mut graph = neighbour_graph(points, cloud.offset, &ground, params, interrupt, &mut notes)?;
+    let (sources, root, foot) = trunk_base(
+        &graph.points,
+        &graph.foot,
+        graph.bin_m,
+        ground.terrain.as_ref(),
+    );
     let sections = cross_sections(&mut graph, &sources, root, params, interrupt)?;
     // Express everything relative to the trunk base: the anchor carries the
     // absolute position in f64, so the georeference stays exact.
@@ -674,13 +687,17 @@ struct NeighbourGraph {
     spacing: f32,
     /// Width of the geodesic-distance bins, in metres.
     bin_m: f32,
+    /// The points' heights above the ground.
+    foot: FootHeights,
 }
 
 /// Step 2, first half: the k-nearest-neighbour graph, made connected (see
 /// [`connect`]); then the checks that the points can be a tree, against
-/// the ground step 0 found under them.
+/// the ground step 0 found under them. `offset` is the cloud's, for the
+/// real coordinates of stems in an error ([`check_one_stem`]).
 fn neighbour_graph(
     points: Vec<Vec3>,
+    offset: glam::DVec3,
     ground: &GroundSeen,
     params: &Params,
     interrupt: &Interrupt,
@@ -713,21 +730,110 @@ fn neighbour_graph(
     // the terrain's slope, which its note states: a plot scan turned by 45°
     // keeps its trunk across one end of the cloud once its ground is gone,
     // and the side test would ask for a turn by 90°.
+    let foot = FootHeights::new(&points, ground.terrain.as_ref());
+    let one_stem = check_one_stem(&points, &foot, offset);
+    let or_two_trees = |e| or_several_trees(e, &one_stem);
     let upright = super::check_upright(&points, base_z, top_z, ground.tilted_up);
     if ground.terrain.is_none() {
         super::upright::check_stands_on_its_trunk(
             &points,
             (STEM_LINK_SPACINGS * spacing).max(0.02),
             super::upright::DENSE_SLICES,
-        )?;
+        )
+        .map_err(or_two_trees)?;
     }
-    notes.extend(upright?);
+    notes.extend(upright.map_err(or_two_trees)?);
+    one_stem?;
     Ok(NeighbourGraph {
         points,
         edges,
         spacing,
         bin_m,
+        foot,
     })
+}
+
+/// Each point's height above the terrain (infinite where no scanned ground
+/// lies under it), or its z when there is no terrain under the tree; and
+/// the lowest of them.
+struct FootHeights {
+    heights: Vec<f32>,
+    lowest: f32,
+}
+
+impl FootHeights {
+    fn new(points: &[Vec3], terrain: Option<&Terrain>) -> Self {
+        let above_ground = |p: &Vec3| {
+            let t = terrain?;
+            t.surface_near(p.x, p.y).map(|ground| p.z - ground)
+        };
+        let heights: Vec<f32> = points
+            .iter()
+            .map(|p| above_ground(p).unwrap_or(f32::INFINITY))
+            .collect();
+        let lowest = heights.iter().copied().fold(f32::INFINITY, f32::min);
+        if lowest.is_finite() {
+            return FootHeights { heights, lowest };
+        }
+        // No terrain, or none under the tree: heights are z.
+        let heights: Vec<f32> = points.iter().map(|p| p.z).collect();
+        let lowest = heights.iter().copied().fold(f32::INFINITY, f32::min);
+        FootHeights { heights, lowest }
+    }
+}
+
+/// One of step 2's checks: refuses a cloud that
+/// stands on stems at least [`MIN_STEMS_APART_M`] apart
+/// ([`parts::standing_stems`]). The crowns of two trees can touch and join
+/// the graph into one, with the second tree hanging from the first as a
+/// branch down to the ground; their stems stay apart. `offset` is the
+/// cloud's, to give the stems' real coordinates.
+fn check_one_stem(
+    points: &[Vec3],
+    foot: &FootHeights,
+    offset: glam::DVec3,
+) -> Result<(), ReconstructError> {
+    let stems = parts::standing_stems(points, &foot.heights, foot.lowest);
+    let mut apart: Vec<parts::Stem> = Vec::new();
+    for stem in stems {
+        if apart
+            .iter()
+            .all(|a| a.centre.distance(stem.centre) >= MIN_STEMS_APART_M)
+        {
+            apart.push(stem);
+        }
+    }
+    let [first, second, ..] = apart[..] else {
+        return Ok(());
+    };
+    let at = |s: parts::Stem| [offset.x + s.centre.x as f64, offset.y + s.centre.y as f64];
+    Err(ReconstructError::SeveralStems {
+        stems: apart.len(),
+        apart_m: first.centre.distance(second.centre),
+        first: at(first),
+        second: at(second),
+    })
+}
+
+/// `error`, an upright check's, extended by the other reading when the
+/// cloud also stands on several stems (`one_stem`): two trees whose crowns
+/// touch stand wide at the bottom, with two narrow tops, and can look
+/// upside down (two poplars 6 m apart did); a tree upside down can hang
+/// twigs that look like stems (1 of 40 synthetic trees turned over did).
+fn or_several_trees(
+    error: ReconstructError,
+    one_stem: &Result<(), ReconstructError>,
+) -> ReconstructError {
+    match (error, one_stem) {
+        (
+            ReconstructError::Degenerate(reason),
+            Err(ReconstructError::SeveralStems { stems, apart_m, .. }),
+        ) => ReconstructError::Degenerate(format!(
+            "{reason}; or it holds {stems} trees whose crowns touch, on stems {apart_m:.1} m \
+             apart (then split the cloud into one tree per file)"
+        )),
+        (error, _) => error,
+    }
 }
 
 /// The trunk base: every point of the lowest slice (one bin high) is a
@@ -745,23 +851,12 @@ fn neighbour_graph(
 /// decimetres off at 10 m.
 fn trunk_base(
     points: &[Vec3],
+    foot: &FootHeights,
     bin_m: f32,
     terrain: Option<&Terrain>,
 ) -> (Vec<u32>, Vec3, Option<glam::Vec2>) {
-    let above_ground = |p: &Vec3| {
-        let t = terrain?;
-        t.surface_near(p.x, p.y).map(|ground| p.z - ground)
-    };
-    let mut heights: Vec<f32> = points
-        .iter()
-        .map(|p| above_ground(p).unwrap_or(f32::INFINITY))
-        .collect();
-    let mut lowest = heights.iter().copied().fold(f32::INFINITY, f32::min);
-    if !lowest.is_finite() {
-        // No terrain, or none under the tree: heights are z.
-        heights = points.iter().map(|p| p.z).collect();
-        lowest = heights.iter().copied().fold(f32::INFINITY, f32::min);
-    }
+    let FootHeights { heights, lowest } = foot;
+    let (heights, lowest) = (heights.as_slice(), *lowest);
     let sources: Vec<u32> = (0..points.len() as u32)
         .filter(|&i| heights[i as usize] < lowest + bin_m)
         .collect();
@@ -777,7 +872,7 @@ fn trunk_base(
     let base_z = terrain.map_or(lowest_z, |t| {
         t.surface_at(base_xy.x, base_xy.y).min(lowest_z)
     });
-    let foot = foot_circle(points, &heights, lowest);
+    let foot = foot_circle(points, heights, lowest);
     (sources, base_xy.extend(base_z), foot)
 }
 
