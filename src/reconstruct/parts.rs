@@ -136,10 +136,10 @@ pub(crate) struct Stem {
 }
 
 /// The stems a dense cloud stands on, largest first: the parts of the
-/// points of the foot band (heights up to [`STEM_BAND_M`] above `lowest`;
-/// `heights[i]` is point `i`'s height, above the terrain where there is
-/// one) that lie at least [`STEM_LINK_M`] apart horizontally, and are
-/// shaped like a stem:
+/// points of the foot band (heights from `lowest` up to [`STEM_BAND_M`]
+/// above it; `heights[i]` is point `i`'s height, above the terrain where
+/// there is one) that lie at least [`STEM_LINK_M`] apart horizontally, and
+/// are shaped like a stem:
 /// - they rise through [`STEM_RISE_SHARE`] of the band,
 /// - they are no wider than a trunk (twice [`MAX_TRUNK_RADIUS_M`]),
 /// - they lean at most [`MAX_STEM_LEAN_DEG`] from vertical,
@@ -156,7 +156,7 @@ pub(crate) fn standing_stems(points: &[Vec3], heights: &[f32], lowest: f32) -> V
     let band: Vec<(Vec3, f32)> = points
         .iter()
         .zip(heights)
-        .filter(|&(_, &h)| h <= lowest + STEM_BAND_M)
+        .filter(|&(_, &h)| (lowest..=lowest + STEM_BAND_M).contains(&h))
         .map(|(p, &h)| (p.truncate().extend(0.0), h - lowest))
         .collect();
     let flat: Vec<Vec3> = band.iter().map(|&(p, _)| p).collect();
