@@ -724,15 +724,17 @@ fn neighbour_graph(
     super::check_height(&points)?;
     let base_z = points.iter().map(|p| p.z).fold(f32::INFINITY, f32::min);
     let top_z = points.iter().map(|p| p.z).fold(f32::NEG_INFINITY, f32::max);
+    // Two trees whose crowns touch are refused for their stems after the
+    // upright checks, whose errors then name both readings.
+    let foot = FootHeights::new(&points, ground.terrain.as_ref());
+    let one_stem = check_one_stem(&points, &foot, offset);
+    let or_two_trees = |e| or_several_trees(e, &one_stem);
     // The trunk tests name the axis that is up, so their error comes before
     // the spreads' and the lean's (a tree lying on its side leans ~90°).
     // Ground found under the tree already shows that +z is up, give or take
     // the terrain's slope, which its note states: a plot scan turned by 45°
     // keeps its trunk across one end of the cloud once its ground is gone,
     // and the side test would ask for a turn by 90°.
-    let foot = FootHeights::new(&points, ground.terrain.as_ref());
-    let one_stem = check_one_stem(&points, &foot, offset);
-    let or_two_trees = |e| or_several_trees(e, &one_stem);
     let upright = super::check_upright(&points, base_z, top_z, ground.tilted_up);
     if ground.terrain.is_none() {
         super::upright::check_stands_on_its_trunk(
