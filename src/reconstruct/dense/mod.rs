@@ -797,20 +797,21 @@ impl FootHeights {
 /// of [`or_several_trees`], 18 for the gap between their crowns, and 5
 /// went to the airborne pipeline under `--mode auto` (trunk coverage below
 /// 0.5, with its note); before, 176 became one tree, all 80 at 2 and 3 m
-/// among them. With `--ground-radius 4`, 199 were refused (171 for their
-/// stems, 9 as upside down with that reading, 19 for their gap); two oaks
-/// 6 m apart became one tree, because the terrain (one patch of ground
-/// cells) did not reach under the second, whose stem then had no height
-/// above ground. Taking such heights above the terrain's extrapolation
-/// found that stem, but also, as a second stem, the limb of a single oak
-/// hanging near the extrapolated ground 7 m out over a 20° slope (oak 125
-/// of `silva eval --synthetic 100 --scan tls --ground-radius 6
-/// --ground-slope 20 --seed 101`), so it was not kept. None of 1,000 single
-/// trees (`silva eval --synthetic 100 --scan tls` in 10 variants: occluded
-/// or not, leaf-on, 30–40 points/m², ground discs of 4–8 m on slopes up to
-/// 30°) and none of `../shared/data` stood on two stems; a synthetic oak's
-/// limb resting on a 20° slope did, until [`parts::standing_stems`] asked
-/// stems to stand.
+/// among them. With `--ground-radius 4` all 200 were refused (172 for
+/// their stems, 9 as upside down with that reading, 19 for their gap).
+/// Two oaks 6 m apart (pair 32) were not, until the terrain fit let its
+/// inliers settle (`ground::SETTLING_ROUNDS`): the terrain had kept the
+/// ground under one oak only, and the second's stem had no height above
+/// ground. Taking such heights above the terrain's extrapolation instead
+/// found that stem too, but also, as a second stem, the limb of a single
+/// oak hanging near the extrapolated ground 7 m out over a 20° slope (oak
+/// 125 of `silva eval --synthetic 100 --scan tls --ground-radius 6
+/// --ground-slope 20 --seed 101`), so it was not kept. None of 1,000
+/// single trees (`silva eval --synthetic 100 --scan tls` in 10 variants:
+/// occluded or not, leaf-on, 30–40 points/m², ground discs of 4–8 m on
+/// slopes up to 30°) and none of `../shared/data` stood on two stems; a
+/// synthetic oak's limb resting on a 20° slope did, until
+/// [`parts::standing_stems`] asked stems to stand.
 fn check_one_stem(
     points: &[Vec3],
     foot: &FootHeights,
