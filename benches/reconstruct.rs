@@ -44,7 +44,7 @@ fn bench(c: &mut Criterion) {
         b.iter(|| reconstruct(&cloud, &dense).expect("a clean synthetic tree"))
     });
     c.bench_function("auto_survey", |b| {
-        b.iter(|| silva::reconstruct::survey(&cloud))
+        b.iter(|| silva::reconstruct::survey(&cloud, &Default::default()))
     });
     bench_neighbour_lists(c, &cloud.points);
 }

@@ -12,6 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use silva::cloud::PointCloud;
 use silva::reconstruct::radii::DbhMethod;
 use silva::reconstruct::{Mode, Options, ReconstructError, reconstruct};
+use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
 use silva::{NodeId, Skeleton};
 
 const OFFSET: DVec3 = DVec3::new(155_000.0, 463_000.0, 10.0);
@@ -200,9 +201,7 @@ fn auto_mode_picks_dense_for_a_terrestrial_scan_and_says_why() {
 #[test]
 fn auto_mode_tells_slender_terrestrial_trees_from_airborne_scans() {
     use silva::reconstruct::survey;
-    use silva::synth::{
-        AlsOptions, Species, TlsOptions, TreeParams, generate, simulate_als, simulate_tls,
-    };
+    use silva::synth::{AlsOptions, simulate_als};
     for (species, seed) in [(Species::Birch, 2), (Species::Pine, 8)] {
         let tree = generate(
             &TreeParams::preset(species),
@@ -210,10 +209,10 @@ fn auto_mode_tells_slender_terrestrial_trees_from_airborne_scans() {
             silva::Anchor::at(OFFSET),
         );
         let tls = simulate_tls(&tree, &TlsOptions::default(), seed);
-        let (mode, why) = survey(&tls).choose(&Options::default().auto);
+        let (mode, why) = survey(&tls, &Options::default().auto).choose(&Options::default().auto);
         assert_eq!(mode, Mode::Dense, "{species:?} TLS: {why}");
         let als = simulate_als(&tree, &AlsOptions::default(), seed);
-        let (mode, why) = survey(&als).choose(&Options::default().auto);
+        let (mode, why) = survey(&als, &Options::default().auto).choose(&Options::default().auto);
         assert_eq!(mode, Mode::Airborne, "{species:?} ALS: {why}");
     }
 }
@@ -278,21 +277,10 @@ fn two_separate_trees_are_an_error() {
 /// `parts::standing_stems`' unit tests.
 #[test]
 fn two_trees_whose_crowns_touch_are_refused_for_their_stems() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
-    let scan_of = |species, seed| {
-        let truth = generate(
-            &TreeParams::preset(species),
-            seed,
-            silva::Anchor::at(OFFSET),
-        );
-        simulate_tls(&truth, &TlsOptions::default(), seed)
-    };
-    let oak = scan_of(Species::Oak, 3);
-    let birch = scan_of(Species::Birch, 2);
+    let oak = tls_scan(Species::Oak, 3);
+    let birch = tls_scan(Species::Birch, 2);
     let apart = Vec3::new(4.0, 0.0, 0.0);
-    let mut points = oak.points.clone();
-    points.extend(birch.points.iter().map(|&p| p + apart));
-    let pair = PointCloud::from_points(OFFSET, points);
+    let pair = side_by_side(&oak, &birch, apart);
     let e = reconstruct(&pair, &dense()).unwrap_err();
     let ReconstructError::SeveralStems {
         stems,
@@ -316,6 +304,55 @@ fn two_trees_whose_crowns_touch_are_refused_for_their_stems() {
     for single in [oak, birch] {
         assert!(reconstruct(&single, &dense()).is_ok());
     }
+}
+
+/// The same in `--mode auto`, for a poplar and an oak 4 m apart (`silva
+/// synth --scan tls`, seeds 1069 and 1070 as in `tools/tls_pairs.py`):
+/// about the centre of both trunks the trunk coverage fell below the dense
+/// pipeline's threshold, and the airborne pipeline made one tree of them.
+/// Measured about the larger stem, it chooses the dense pipeline, which
+/// refuses the pair.
+#[test]
+fn auto_mode_sends_two_trees_on_their_stems_to_the_dense_pipeline() {
+    use silva::reconstruct::{AutoThresholds, survey};
+    let pair = side_by_side(
+        &tls_scan(Species::Poplar, 1069),
+        &tls_scan(Species::Oak, 1070),
+        Vec3::new(4.0, 0.0, 0.0),
+    );
+    let thresholds = AutoThresholds::default();
+    let measured = survey(&pair, &thresholds);
+    assert!(
+        measured.trunk_coverage >= thresholds.min_trunk_coverage,
+        "{measured:?}"
+    );
+    assert_eq!(measured.choose(&thresholds).0, Mode::Dense);
+    let auto = Options {
+        mode: Mode::Auto,
+        ..Options::default()
+    };
+    let e = reconstruct(&pair, &auto).unwrap_err();
+    assert!(
+        matches!(e, ReconstructError::SeveralStems { stems: 2, .. }),
+        "{e}"
+    );
+}
+
+/// The default terrestrial scan of a synthetic tree standing at [`OFFSET`].
+fn tls_scan(species: Species, seed: u64) -> PointCloud {
+    let truth = generate(
+        &TreeParams::preset(species),
+        seed,
+        silva::Anchor::at(OFFSET),
+    );
+    simulate_tls(&truth, &TlsOptions::default(), seed)
+}
+
+/// One cloud of `first` and of `second` moved by `apart`.
+fn side_by_side(first: &PointCloud, second: &PointCloud, apart: Vec3) -> PointCloud {
+    let mut points = first.points.clone();
+    points.extend(second.points.iter().map(|&p| p + apart));
+    PointCloud::from_points(OFFSET, points)
 }
 
 #[test]
@@ -354,7 +391,6 @@ fn a_tilted_tree_is_a_flagged_best_effort() {
 /// lean was once measured by, sits 1 m off the trunk and read as 31°.
 #[test]
 fn low_branches_are_no_lean() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
         &TreeParams::preset(Species::Oak),
         20,
@@ -368,8 +404,7 @@ fn low_branches_are_no_lean() {
 
 /// A Weber–Penn tree of each species (seeds 1–4), scanned from four
 /// positions with the default terrestrial settings.
-fn one_scan_per_species() -> Vec<(silva::synth::Species, PointCloud)> {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
+fn one_scan_per_species() -> Vec<(Species, PointCloud)> {
     [Species::Oak, Species::Birch, Species::Poplar, Species::Pine]
         .into_iter()
         .zip(1..)
@@ -402,7 +437,6 @@ fn the_root_stands_on_the_trunk_axis_of_a_one_sided_scan() {
 /// base with the 10 cm slice alone.
 #[test]
 fn the_root_of_a_sparse_scan_stands_on_the_trunk_axis() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
         &TreeParams::preset(Species::Poplar),
         3,
@@ -522,14 +556,13 @@ fn cli_writes_a_georeferenced_ply_and_metrics() {
 /// The synthetic Lombardy poplar of `silva eval --synthetic` seed 3 and a
 /// clean, dense terrestrial scan of it (see [`clean_scan`]).
 fn clean_poplar_scan() -> (Skeleton, PointCloud) {
-    clean_scan(silva::synth::Species::Poplar, 3)
+    clean_scan(Species::Poplar, 3)
 }
 
 /// The synthetic tree of `silva eval --synthetic` (species and seed as
 /// there) and a clean, dense terrestrial scan of it (1,000 points/m², no
 /// occlusion).
-fn clean_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointCloud) {
-    use silva::synth::{TlsOptions, TreeParams, generate, simulate_tls};
+fn clean_scan(species: Species, seed: u64) -> (Skeleton, PointCloud) {
     let truth = generate(
         &TreeParams::preset(species),
         seed,
@@ -570,13 +603,7 @@ fn assert_fitted_dbh(
 
 /// A synthetic tree (at the origin) and its default scan as a plot: with
 /// ground scanned `radius_m` around the trunk, rising `slope_deg` along +x.
-fn plot_scan(
-    species: silva::synth::Species,
-    seed: u64,
-    radius_m: f32,
-    slope_deg: f32,
-) -> (Skeleton, PointCloud) {
-    use silva::synth::{TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
+fn plot_scan(species: Species, seed: u64, radius_m: f32, slope_deg: f32) -> (Skeleton, PointCloud) {
     let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
     let opts = TlsOptions {
         ground: Some(TlsGround {
@@ -589,8 +616,7 @@ fn plot_scan(
     (truth, scan)
 }
 
-fn default_scan(species: silva::synth::Species, seed: u64) -> (Skeleton, PointCloud) {
-    use silva::synth::{TlsOptions, TreeParams, generate, simulate_tls};
+fn default_scan(species: Species, seed: u64) -> (Skeleton, PointCloud) {
     let truth = generate(
         &TreeParams::preset(species),
         seed,
@@ -623,7 +649,7 @@ fn a_poplars_trunk_grows_no_spurs_to_its_bark() {
 /// branches; with it, the length is within a seventh of the truth's.
 #[test]
 fn a_thin_twig_is_one_branch_not_two_strands() {
-    let (truth, cloud) = clean_scan(silva::synth::Species::Birch, 2);
+    let (truth, cloud) = clean_scan(Species::Birch, 2);
     let ratios = |opts: &Options| {
         let tree = reconstruct(&cloud, opts).unwrap();
         let branches = |orders: &[silva::reconstruct::metrics::OrderStats]| {
@@ -659,7 +685,7 @@ fn a_thin_twig_is_one_branch_not_two_strands() {
 /// 10 (pieces joined again by one bridge each), it follows the twigs.
 #[test]
 fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
-    let (truth, cloud) = default_scan(silva::synth::Species::Birch, 2);
+    let (truth, cloud) = default_scan(Species::Birch, 2);
     let (recall, precision) = recall_precision(&truth, &cloud, &dense());
     let mut long_links = dense();
     long_links.dense.max_edge_spacings = 20.0;
@@ -684,7 +710,7 @@ fn a_sparsely_hit_crown_keeps_its_twigs_apart() {
 /// branches'), not estimated allometrically.
 #[test]
 fn a_trunk_chain_that_zigzags_still_gets_a_fitted_dbh() {
-    let (truth, cloud) = default_scan(silva::synth::Species::Poplar, 3);
+    let (truth, cloud) = default_scan(Species::Poplar, 3);
     let mut zigzag = dense();
     zigzag.dense.detour_thin_share = 0.0;
     let tree = reconstruct(&cloud, &zigzag).unwrap();
@@ -840,7 +866,6 @@ fn a_narrow_fork_keeps_both_stems_on_their_axes() {
 #[test]
 fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
     use silva::eval::compare::compare;
-    use silva::synth::{Species, TlsGround, TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
         &TreeParams::preset(Species::Oak),
         1,
@@ -893,7 +918,7 @@ fn a_plot_scan_keeps_its_ground_out_of_the_tree() {
 /// for having "only 0 points above the ground".
 #[test]
 fn a_plot_scan_with_its_ground_on_top_is_an_error() {
-    let (_, scan) = plot_scan(silva::synth::Species::Poplar, 3, 8.0, 0.0);
+    let (_, scan) = plot_scan(Species::Poplar, 3, 8.0, 0.0);
     for degrees in [135.0f32, 180.0] {
         let cloud = turned_about_x(&scan, degrees);
         for options in [dense(), Options::default()] {
@@ -914,7 +939,6 @@ fn a_plot_scan_with_its_ground_on_top_is_an_error() {
 /// the same plots get no such note.
 #[test]
 fn a_plot_scan_turned_sixty_degrees_is_flagged_by_its_ground_plane() {
-    use silva::synth::Species;
     for (species, seed) in [(Species::Oak, 5), (Species::Pine, 1)] {
         let (_, scan) = plot_scan(species, seed, 4.0, 0.0);
         let tilted = |cloud: &PointCloud| {
@@ -940,7 +964,6 @@ fn a_plot_scan_turned_sixty_degrees_is_flagged_by_its_ground_plane() {
 /// note, which gives the turn that levels the cloud, is the only one.
 #[test]
 fn a_plot_scan_turned_with_its_ground_gets_one_tilt_angle() {
-    use silva::synth::Species;
     for (species, degrees, tilt) in [
         (Species::Oak, 60.0, "tilted by 60°"),
         (Species::Pine, 45.0, "slopes 45°"),
@@ -960,7 +983,7 @@ fn a_plot_scan_turned_with_its_ground_gets_one_tilt_angle() {
 /// that levels it. Turned 90°, it names the axis that is up, as before.
 #[test]
 fn a_plot_scan_turned_sixty_degrees_onto_a_side_is_told_the_turn_that_levels_it() {
-    let (_, scan) = plot_scan(silva::synth::Species::Poplar, 2, 4.0, 0.0);
+    let (_, scan) = plot_scan(Species::Poplar, 2, 4.0, 0.0);
     let error = |degrees: f32| {
         reconstruct(&turned_about_x(&scan, degrees), &Options::default())
             .map(|tree| tree.notes)
@@ -987,7 +1010,7 @@ fn a_plot_scan_turned_sixty_degrees_onto_a_side_is_told_the_turn_that_levels_it(
 /// smeared into a disc, and the DBH came out 0.71 m against 0.42 m.
 #[test]
 fn a_zigzagging_trunk_chain_does_not_smear_the_dbh_slice() {
-    let (truth, cloud) = default_scan(silva::synth::Species::Pine, 20);
+    let (truth, cloud) = default_scan(Species::Pine, 20);
     let tree = reconstruct(&cloud, &dense()).unwrap();
     assert_fitted_dbh(&tree, &truth, 0.02);
 }
@@ -1040,7 +1063,7 @@ fn returns_classified_as_noise_are_ignored() {
 /// stem went as below-ground noise and the DBH came out 1.6 m.
 #[test]
 fn a_drooping_crown_is_not_taken_for_the_ground() {
-    let (truth, cloud) = default_scan(silva::synth::Species::Birch, 50);
+    let (truth, cloud) = default_scan(Species::Birch, 50);
     let tree = reconstruct(&cloud, &dense()).unwrap();
     assert!(
         !tree.notes.iter().any(|n| n.contains("by terrain fit")),
@@ -1057,7 +1080,7 @@ fn a_drooping_crown_is_not_taken_for_the_ground() {
 /// (10.1 m off) and the DBH was estimated.
 #[test]
 fn a_limb_tip_beyond_the_plots_ground_is_no_trunk_base() {
-    let (truth, scan) = plot_scan(silva::synth::Species::Oak, 1, 5.0, 20.0);
+    let (truth, scan) = plot_scan(Species::Oak, 1, 5.0, 20.0);
     let tree = reconstruct(&scan, &Options::default()).unwrap();
     let base = tree.skeleton.anchor().origin;
     assert!(base.truncate().length() < 0.5, "trunk base at {base}");
@@ -1088,7 +1111,6 @@ fn stem_between(s: &Skeleton, lo: f32, hi: f32) -> Vec<(DVec3, f32)> {
 /// 0.3 to 4 m lies on the truth's axis and is as thick as the truth's.
 #[test]
 fn an_occluded_trunk_is_reconstructed_on_its_axis() {
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
     for (species, seed) in [(Species::Poplar, 3), (Species::Oak, 5)] {
         let truth = generate(&TreeParams::preset(species), seed, silva::Anchor::default());
         let scan = simulate_tls(&truth, &TlsOptions::default(), seed);
@@ -1140,7 +1162,6 @@ fn an_occluded_trunk_is_reconstructed_on_its_axis() {
 #[test]
 fn a_poplars_trunk_is_followed_through_its_crown() {
     use silva::reconstruct::metrics::wood_volume_m3;
-    use silva::synth::{Species, TlsOptions, TreeParams, generate, simulate_tls};
     let truth = generate(
         &TreeParams::preset(Species::Poplar),
         3,
@@ -1179,7 +1200,6 @@ fn a_poplars_trunk_is_followed_through_its_crown() {
 /// reconstruction says so in a note.
 #[test]
 fn the_height_reaches_past_the_hidden_top_of_an_occluded_crown() {
-    use silva::synth::Species;
     let species = [Species::Oak, Species::Birch, Species::Poplar, Species::Pine];
     let mut errors: Vec<f32> = (1..=8u64)
         .map(|seed| {

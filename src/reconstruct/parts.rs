@@ -126,6 +126,11 @@ const MIN_STEM_POINTS: usize = 20;
 /// stem: a sapling or a fallen twig beside a trunk does not count.
 const MIN_STEM_SHARE: f32 = 0.1;
 
+/// Stems at least this far apart (metres, centre to centre) are two trees
+/// ([`stems_apart`]); nearer ones can be one tree forked at the ground, or
+/// a coppice stool.
+pub(crate) const MIN_STEMS_APART_M: f32 = 1.0;
+
 /// A stem standing on the ground, as [`standing_stems`] finds it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Stem {
@@ -173,6 +178,21 @@ pub(crate) fn standing_stems(points: &[Vec3], heights: &[f32], lowest: f32) -> V
     let largest = stems.first().map_or(0, |s| s.points);
     stems.retain(|s| s.points as f32 >= MIN_STEM_SHARE * largest as f32);
     stems
+}
+
+/// The [`standing_stems`] that stand at least [`MIN_STEMS_APART_M`] from
+/// every larger one, largest first: one stem per tree.
+pub(crate) fn stems_apart(points: &[Vec3], heights: &[f32], lowest: f32) -> Vec<Stem> {
+    let mut apart: Vec<Stem> = Vec::new();
+    for stem in standing_stems(points, heights, lowest) {
+        if apart
+            .iter()
+            .all(|a| a.centre.distance(stem.centre) >= MIN_STEMS_APART_M)
+        {
+            apart.push(stem);
+        }
+    }
+    apart
 }
 
 /// What [`standing_stems`] gathers of one part of the foot band: its

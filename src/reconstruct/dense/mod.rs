@@ -98,11 +98,6 @@ mod twins;
 pub(crate) use graph::UnionFind;
 pub(crate) use simplify::point_segment_distance;
 
-/// Stems of a cloud at least this far apart (metres, centre to centre)
-/// are two trees ([`check_one_stem`]); nearer ones can be one tree forked
-/// at the ground, or a coppice stool.
-const MIN_STEMS_APART_M: f32 = 1.0;
-
 /// Bark points closer than this many point spacings belong to one piece of
 /// bark in the upside-down test ([`super::upright`]).
 const STEM_LINK_SPACINGS: f32 = 4.0;
@@ -785,48 +780,40 @@ impl FootHeights {
 }
 
 /// One of step 2's checks: refuses a cloud that stands on stems at least
-/// [`MIN_STEMS_APART_M`] apart ([`parts::standing_stems`]). The crowns of
+/// `parts::MIN_STEMS_APART_M` apart ([`parts::stems_apart`]). The crowns of
 /// two trees can touch and join the graph into one, with the second tree
 /// hanging from the first as a branch down to the ground; their stems stay
 /// apart. `offset` is the cloud's, to give the stems' real coordinates.
 ///
 /// Measured with `tools/tls_pairs.py` (`silva reconstruct` on two `silva
 /// synth --scan tls` clouds, seeds 1001–1080 in 40 pairs of the four
-/// species, the second moved 2, 3, 4, 6 and 8 m along x): 171 of the 200
-/// pairs were refused for their stems, 6 as upside down with the reading
-/// of [`or_several_trees`], 18 for the gap between their crowns, and 5
-/// went to the airborne pipeline under `--mode auto` (trunk coverage below
-/// 0.5, with its note); before, 176 became one tree, all 80 at 2 and 3 m
-/// among them. With `--ground-radius 4` all 200 were refused (172 for
-/// their stems, 9 as upside down with that reading, 19 for their gap).
-/// Two oaks 6 m apart (pair 32) were not, until the terrain fit let its
-/// inliers settle (`ground::SETTLING_ROUNDS`): the terrain had kept the
-/// ground under one oak only, and the second's stem had no height above
-/// ground. Taking such heights above the terrain's extrapolation instead
-/// found that stem too, but also, as a second stem, the limb of a single
-/// oak hanging near the extrapolated ground 7 m out over a 20° slope (oak
-/// 125 of `silva eval --synthetic 100 --scan tls --ground-radius 6
-/// --ground-slope 20 --seed 101`), so it was not kept. None of 1,000
-/// single trees (`silva eval --synthetic 100 --scan tls` in 10 variants:
-/// occluded or not, leaf-on, 30–40 points/m², ground discs of 4–8 m on
-/// slopes up to 30°) and none of `../shared/data` stood on two stems; a
-/// synthetic oak's limb resting on a 20° slope did, until
+/// species, the second moved 2, 3, 4, 6 and 8 m along x): 174 of the 200
+/// pairs were refused for their stems, 7 as upside down with the reading
+/// of [`or_several_trees`], 19 for the gap between their crowns; before
+/// this check, 176 became one tree, all 80 at 2 and 3 m among them, and 5
+/// went to the airborne pipeline under `--mode auto`, as they did with it
+/// until the survey measured the trunk coverage about the larger stem
+/// (`reconstruct::trunk_coverage`). With `--ground-radius 4` all 200 were
+/// refused (172 for their stems, 9 as upside down with that reading, 19
+/// for their gap). Two oaks 6 m apart (pair 32) were not, until the
+/// terrain fit let its inliers settle (`ground::SETTLING_ROUNDS`): the
+/// terrain had kept the ground under one oak only, and the second's stem
+/// had no height above ground. Taking such heights above the terrain's
+/// extrapolation instead found that stem too, but also, as a second stem,
+/// the limb of a single oak hanging near the extrapolated ground 7 m out
+/// over a 20° slope (oak 125 of `silva eval --synthetic 100 --scan tls
+/// --ground-radius 6 --ground-slope 20 --seed 101`), so it was not kept.
+/// None of 1,000 single trees (`silva eval --synthetic 100 --scan tls` in
+/// 10 variants: occluded or not, leaf-on, 30–40 points/m², ground discs of
+/// 4–8 m on slopes up to 30°) and none of `../shared/data` stood on two
+/// stems; a synthetic oak's limb resting on a 20° slope did, until
 /// [`parts::standing_stems`] asked stems to stand.
 fn check_one_stem(
     points: &[Vec3],
     foot: &FootHeights,
     offset: glam::DVec3,
 ) -> Result<(), ReconstructError> {
-    let stems = parts::standing_stems(points, &foot.heights, foot.lowest);
-    let mut apart: Vec<parts::Stem> = Vec::new();
-    for stem in stems {
-        if apart
-            .iter()
-            .all(|a| a.centre.distance(stem.centre) >= MIN_STEMS_APART_M)
-        {
-            apart.push(stem);
-        }
-    }
+    let apart = parts::stems_apart(points, &foot.heights, foot.lowest);
     let [first, second, ..] = apart[..] else {
         return Ok(());
     };
