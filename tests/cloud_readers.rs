@@ -174,6 +174,37 @@ fn a_byte_order_mark_at_the_start_of_xyz_is_skipped() {
     assert!(err.to_string().contains("line 2: not a number"), "{err}");
 }
 
+/// A stray return first in the file (99 km east of the tree) does not
+/// become the offset: relative `f32` coordinates 99 km from the tree would
+/// keep 8 mm, and the tree's points 0.1 mm apart would merge. The offset
+/// is the median of the first points; clouds whose first point lies with
+/// the rest keep it as their offset. The 99 km span check still holds.
+#[test]
+fn a_stray_first_point_is_not_the_offset() {
+    let tree: Vec<String> = (0..40)
+        .map(|i| format!("155000.{i:04} 463000.{i:04} {}.5", i % 7))
+        .collect();
+    let file = format!("254000 463000 2\n{}\n", tree.join("\n"));
+    let (cloud, _) = read_bytes(file.as_bytes(), &ReadOptions::default()).unwrap();
+    assert_eq!(cloud.len(), 41);
+    assert!(
+        (cloud.offset.x - 155_000.0).abs() <= 1.0,
+        "{}",
+        cloud.offset
+    );
+    assert_eq!(cloud.absolute(0).x, 254_000.0);
+    for i in 0..40 {
+        let p = cloud.absolute(i + 1);
+        let expected = 155_000.0 + i as f64 * 1e-4;
+        assert!((p.x - expected).abs() < 1e-5, "point {i}: {}", p.x);
+    }
+    let (plain, _) = read_bytes(tree.join("\n").as_bytes(), &ReadOptions::default()).unwrap();
+    assert_eq!(plain.offset, DVec3::new(155_000.0, 463_000.0, 1.0));
+    let far = format!("{}\n254000 463000 2\n354001 463000 2\n", tree.join("\n"));
+    let err = read_bytes(far.as_bytes(), &ReadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("more than 100 km"), "{err}");
+}
+
 /// A skeleton, LsJSON or CityJSON document sent where a cloud belongs is
 /// named as JSON, not read as XYZ lines that are too long or not numbers.
 #[test]

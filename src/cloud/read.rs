@@ -236,15 +236,30 @@ pub(super) struct Attributes {
 /// Largest absolute coordinate accepted: beyond any projected or geocentric
 /// CRS in metres, so larger values are corrupt data.
 const MAX_ABS_M: f64 = 1e9;
-/// Largest distance from the first point: relative `f32` coordinates keep
-/// 1 mm resolution to about 8 km and 8 mm at 100 km; beyond that the cloud
-/// is not a tree or a tile, and the coordinates would be meaningless.
+/// Largest distance from the offset (the first point, see [`CloudBuilder`]):
+/// relative `f32` coordinates keep 1 mm resolution to about 8 km and 8 mm
+/// at 100 km; beyond that the cloud is not a tree or a tile, and the
+/// coordinates would be meaningless.
 const MAX_SPAN_M: f64 = 1e5;
+
+/// Points whose median places the offset when the first point lies apart
+/// from them ([`CloudBuilder`]).
+const OFFSET_SAMPLE: usize = 16;
+
+/// Distance from the median of the first [`OFFSET_SAMPLE`] points beyond
+/// which the first point is a stray and the offset is that median instead
+/// (metres): within it, relative `f32` coordinates keep 0.06 mm.
+const STRAY_FIRST_M: f64 = 1000.0;
 
 /// Collects absolute points into a [`PointCloud`] under the point limit.
 ///
 /// The offset is the first point rounded to whole metres, so that relative
-/// `f32` coordinates stay sub-millimetre for anything within a few km of it.
+/// `f32` coordinates stay sub-millimetre for anything within a few km of it;
+/// unless the first point lies more than [`STRAY_FIRST_M`] from the median
+/// of the first [`OFFSET_SAMPLE`] points (a stray return 99 km east would
+/// otherwise leave the tree with 8 mm resolution once the stray is dropped),
+/// in which case the offset is that median, rounded. The first points wait
+/// in `pending` until the offset is chosen.
 /// Attribute columns exist when the reader said so at construction: `with`
 /// holds, per column, the value used when a point does not supply one.
 pub(super) struct CloudBuilder {
@@ -252,6 +267,7 @@ pub(super) struct CloudBuilder {
     limit: usize,
     cloud: PointCloud,
     with: Attributes,
+    pending: Option<Vec<(DVec3, Attributes)>>,
 }
 
 impl CloudBuilder {
@@ -271,6 +287,7 @@ impl CloudBuilder {
             limit: opts.max_points,
             cloud,
             with,
+            pending: Some(Vec::with_capacity(OFFSET_SAMPLE)),
         }
     }
 
@@ -281,7 +298,6 @@ impl CloudBuilder {
         attrs: Attributes,
         location: Location,
     ) -> Result<(), CloudError> {
-        let cloud = &mut self.cloud;
         let reason = if !p.is_finite() {
             Some(format!("non-finite coordinate ({}, {}, {})", p.x, p.y, p.z))
         } else if p.abs().max_element() > MAX_ABS_M {
@@ -289,9 +305,9 @@ impl CloudBuilder {
                 "implausible coordinate ({}, {}, {}) m",
                 p.x, p.y, p.z
             ))
-        } else if !cloud.is_empty() && (p - cloud.offset).abs().max_element() > MAX_SPAN_M {
+        } else if self.len() > 0 && (p - self.cloud.offset).abs().max_element() > MAX_SPAN_M {
             Some(format!(
-                "point ({}, {}, {}) lies more than {} km from the first point",
+                "point ({}, {}, {}) lies more than {} km from the cloud's first points",
                 p.x,
                 p.y,
                 p.z,
@@ -307,15 +323,51 @@ impl CloudBuilder {
                 reason,
             });
         }
-        if cloud.points.len() >= self.limit {
+        if self.len() >= self.limit {
             return Err(CloudError::TooManyPoints {
                 format: self.format,
                 limit: self.limit,
             });
         }
-        if cloud.points.is_empty() {
-            cloud.offset = p.round();
+        let Some(pending) = &mut self.pending else {
+            self.append(p, attrs);
+            return Ok(());
+        };
+        if pending.is_empty() {
+            self.cloud.offset = p.round();
         }
+        pending.push((p, attrs));
+        if pending.len() == OFFSET_SAMPLE {
+            self.place_offset();
+        }
+        Ok(())
+    }
+
+    /// Chooses the offset from the pending first points (see
+    /// [`CloudBuilder`]) and appends them.
+    fn place_offset(&mut self) {
+        let Some(pending) = self.pending.take() else {
+            return;
+        };
+        let median = |axis: fn(&DVec3) -> f64| {
+            let mut v: Vec<f64> = pending.iter().map(|(p, _)| axis(p)).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        if let Some((first, _)) = pending.first() {
+            let centre = DVec3::new(median(|p| p.x), median(|p| p.y), median(|p| p.z));
+            if first.distance(centre) > STRAY_FIRST_M {
+                self.cloud.offset = centre.round();
+            }
+        }
+        for (p, attrs) in pending {
+            self.append(p, attrs);
+        }
+    }
+
+    /// Appends one point, checked, relative to the chosen offset.
+    fn append(&mut self, p: DVec3, attrs: Attributes) {
+        let cloud = &mut self.cloud;
         let rel: Vec3 = (p - cloud.offset).as_vec3();
         cloud.points.push(rel);
         push_attr(&mut cloud.intensity, attrs.intensity, self.with.intensity);
@@ -329,16 +381,16 @@ impl CloudBuilder {
             attrs.classification,
             self.with.classification,
         );
-        Ok(())
     }
 
     /// Points accepted so far.
     pub(super) fn len(&self) -> usize {
-        self.cloud.len()
+        self.cloud.len() + self.pending.as_ref().map_or(0, Vec::len)
     }
 
     /// The finished cloud (possibly empty; callers report emptiness).
-    pub(super) fn finish(self) -> PointCloud {
+    pub(super) fn finish(mut self) -> PointCloud {
+        self.place_offset();
         self.cloud
     }
 }
