@@ -365,7 +365,8 @@ impl CloudBuilder {
         }
     }
 
-    /// Appends one point, checked, relative to the chosen offset.
+    /// Appends one point that [`CloudBuilder::push`] accepted, relative to
+    /// the chosen offset.
     fn append(&mut self, p: DVec3, attrs: Attributes) {
         let cloud = &mut self.cloud;
         let rel: Vec3 = (p - cloud.offset).as_vec3();
