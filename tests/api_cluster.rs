@@ -72,7 +72,7 @@ fn executions(metrics: &str) -> u64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_processes_run_every_job_exactly_once() {
-    let Some(db) = TestDb::postgres().await else {
+    let Some(db) = TestDb::postgres("the whole test (it needs PostgreSQL)").await else {
         return;
     };
     let url = db.url();

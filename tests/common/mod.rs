@@ -6,7 +6,8 @@
 //! 127.0.0.1:5432 (`CREATE DATABASE silva_t_<uuid>`, dropped afterwards, so
 //! tests run in parallel). When that server does not answer, a test fails
 //! if the `CI` environment variable is set, and otherwise passes after a
-//! loud SKIP on stderr.
+//! loud SKIP written to stderr past the harness's capture
+//! ([`warn_past_capture`]).
 
 #![allow(dead_code)] // each test binary uses a different subset
 
@@ -38,9 +39,9 @@ impl TestDb {
         TestDb::Sqlite(tempfile::tempdir().expect("temporary directory"))
     }
 
-    /// A fresh PostgreSQL database; `None` (after the SKIP warning) when the
-    /// server does not answer outside CI.
-    pub async fn postgres() -> Option<TestDb> {
+    /// A fresh PostgreSQL database; `None` (after the SKIP warning, which
+    /// names `what` did not run) when the server does not answer outside CI.
+    pub async fn postgres(what: &str) -> Option<TestDb> {
         let admin =
             tokio::time::timeout(Duration::from_secs(5), PgConnection::connect(PG_ADMIN_URL))
                 .await
@@ -52,10 +53,9 @@ impl TestDb {
                 panic!("PostgreSQL at {PG_ADMIN_URL} is required in CI: {err}")
             }
             Err(err) => {
-                eprintln!(
-                    "\n*** SKIP: PostgreSQL at {PG_ADMIN_URL} is unreachable ({err}); \
-                     the PostgreSQL half of this test did NOT run ***\n"
-                );
+                warn_past_capture(&format!(
+                    "SKIP: PostgreSQL at {PG_ADMIN_URL} is unreachable ({err}); {what} did NOT run"
+                ));
                 return None;
             }
         };
@@ -99,7 +99,7 @@ where
     let sqlite = TestDb::sqlite();
     scenario(sqlite.url()).await;
     sqlite.drop_db().await;
-    if let Some(pg) = TestDb::postgres().await {
+    if let Some(pg) = TestDb::postgres("the PostgreSQL half of this test").await {
         let url = pg.url();
         // Drop the database even when the scenario panics.
         let outcome =
@@ -109,6 +109,15 @@ where
             std::panic::resume_unwind(panic);
         }
     }
+}
+
+/// Writes `message` to the process's stderr directly: the test harness
+/// captures `eprintln!` and shows it only for failing tests, so a SKIP
+/// printed that way is never seen in a passing `cargo test` run.
+pub fn warn_past_capture(message: &str) {
+    use std::io::Write;
+    // Nothing to do if stderr itself is gone.
+    let _ = writeln!(std::io::stderr().lock(), "\n*** {message} ***\n");
 }
 
 /// A configuration for an in-process server on an ephemeral port.
