@@ -75,6 +75,36 @@ fn assert_same_shape(a: &Skeleton, b: &Skeleton, bound: f64) {
     }
 }
 
+/// The voxel edge and radius step `code` states are the ones asked for,
+/// computed here from the skeleton (Eq. 2, `d = l̄/r`, `l̄` over the internodes
+/// of positive length, 1 m without any), so that the bounds that
+/// [`assert_faithful`] reads from the header cannot drift with the encoder.
+fn assert_asked_resolution(s: &Skeleton, code: &ChainCode, resolution: Resolution) {
+    let d = match resolution {
+        Resolution::VoxelSize(d) => d,
+        Resolution::PerInternode(r) => {
+            let lengths: Vec<f64> = s
+                .internodes()
+                .map(|(p, c)| f64::from(s.position(p).distance(s.position(c))))
+                .filter(|&l| l > 0.0)
+                .collect();
+            let mean = if lengths.is_empty() {
+                1.0
+            } else {
+                lengths.iter().sum::<f64>() / lengths.len() as f64
+            };
+            mean / f64::from(r)
+        }
+    };
+    let stated = code.header().voxel_size_m;
+    assert!(
+        (stated - d).abs() <= 1e-6 * d,
+        "voxel {stated} m, asked {d} m"
+    );
+    let step = ChainOptions::default().radius_step_m;
+    assert_eq!(code.header().radius_step_m, step);
+}
+
 fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
     let nearest = ChainOptions {
         voxelisation: Voxelisation::Nearest,
@@ -83,6 +113,7 @@ fn round_trip_all_forms(s: &Skeleton, resolution: Resolution) -> ChainCode {
     let code = encode(s, &nearest).unwrap();
     assert_faithful(s, &code, &decode(&code).unwrap());
     let code = encode(s, &opts(resolution)).unwrap();
+    assert_asked_resolution(s, &code, resolution);
     let decoded = decode(&code).unwrap();
     assert_faithful(s, &code, &decoded);
     let limits = Limits::default();
@@ -195,7 +226,7 @@ proptest! {
     }
 
     #[test]
-    fn hostile_bytes_are_rejected_without_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+    fn hostile_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
         let limits = Limits::default();
         let _ = ChainCode::from_bytes(&bytes, &limits);
         let _ = ChainCode::decompress(&bytes, &limits);
@@ -278,7 +309,9 @@ fn synthetic_species_round_trip() {
             round_trip_all_forms(&s, Resolution::PerInternode(r));
         }
         let code = encode(&s, &ChainOptions::default()).unwrap();
-        for t in chaincode::lod_thresholds(&code, chaincode::LOD_LEVELS) {
+        let thresholds = chaincode::lod_thresholds(&code, chaincode::LOD_LEVELS);
+        assert!(!thresholds.is_empty(), "{species:?} has laterals to prune");
+        for t in thresholds {
             let lod = decode(&reduce_lod(&code, t)).unwrap();
             assert!(lod.len() < s.len());
             assert_eq!(

@@ -53,6 +53,23 @@ fn encode_decode_export_round_trip() {
         Skeleton::from_json(&std::fs::read_to_string(d.join("from_ls.json")).unwrap()).unwrap();
     assert!(max_error_m(&tree, &from_ls) <= 0.001 + 1e-5);
 
+    // The chain code at its default r = 5: every node within √3·d/2 of the
+    // original, d being the mean internode length over 5 (Eq. 2).
+    silva()
+        .current_dir(d)
+        .args(["decode", "c.bin", "--skeleton", "full_cc.json"])
+        .succeeds();
+    let full_cc =
+        Skeleton::from_json(&std::fs::read_to_string(d.join("full_cc.json")).unwrap()).unwrap();
+    let lengths: Vec<f64> = tree
+        .internodes()
+        .map(|(p, c)| f64::from(tree.position(p).distance(tree.position(c))))
+        .filter(|&l| l > 0.0)
+        .collect();
+    let voxel_m = lengths.iter().sum::<f64>() / lengths.len() as f64 / 5.0;
+    let bound_m = 3f64.sqrt() / 2.0 * voxel_m;
+    assert!(max_error_m(&tree, &full_cc.canonical()) <= bound_m + 1e-5);
+
     silva()
         .current_dir(d)
         .args([
@@ -91,6 +108,8 @@ fn encode_decode_export_round_trip() {
     assert_eq!(city["type"], "CityJSON");
     let csv = std::fs::read_to_string(d.join("t.csv")).unwrap();
     assert_eq!(csv.lines().count(), tree.internode_count() + 1);
+    let ply = Skeleton::from_ply(&std::fs::read(d.join("t.ply")).unwrap()).unwrap();
+    assert!(max_error_m(&from_ls, &ply.canonical()) <= 1e-5);
     assert!(
         std::fs::read_to_string(d.join("m.obj"))
             .unwrap()
@@ -177,7 +196,8 @@ fn an_adtree_skeleton_ply_is_encoded_with_estimated_radii_and_a_note() {
         .succeeds();
     let back = Skeleton::from_json(&std::fs::read_to_string(d.join("back.json")).unwrap()).unwrap();
     assert_eq!(back.len(), 3);
-    // The estimated radii survive the L-system: positive, thinner upwards.
+    // The estimated radii survive the L-system: positive, never thicker
+    // upwards.
     let (root, tip) = (
         back.radius(silva::NodeId::ROOT),
         back.radius(back.ids().last().unwrap()),

@@ -47,9 +47,10 @@
 //! use silva::encode::chaincode::{self, ChainCode, ChainOptions, Limits, Resolution};
 //! use silva::{Anchor, NodeId, Skeleton};
 //!
+//! // Nodes added main extension first, the order the decoder returns them in.
 //! let mut tree = Skeleton::new(Anchor::at(DVec3::new(155_000.0, 463_000.0, 0.0)), 0.30);
 //! let a = tree.add_child(NodeId::ROOT, Vec3::new(0.0, 0.0, 1.0), 0.25);
-//! let top = tree.add_child(a, Vec3::new(0.1, 0.0, 2.0), 0.20);
+//! tree.add_child(a, Vec3::new(0.1, 0.0, 2.0), 0.20);
 //! tree.add_child(a, Vec3::new(0.8, 0.0, 1.6), 0.05);
 //!
 //! let opts = ChainOptions { resolution: Resolution::PerInternode(5.0), ..Default::default() };
@@ -59,7 +60,11 @@
 //! let decoded = chaincode::decode(&back).unwrap();
 //! assert_eq!(decoded.len(), tree.len());
 //! let bound = code.error_bound_m() as f32 + 1e-6;
-//! assert!(decoded.position(NodeId::from_index(2)).distance(tree.position(top)) <= bound);
+//! let half_step = code.header().radius_step_m / 2.0 + 1e-6;
+//! for id in tree.ids() {
+//!     assert!(decoded.position(id).distance(tree.position(id)) <= bound);
+//!     assert!((decoded.radius(id) - tree.radius(id)).abs() <= half_step);
+//! }
 //!
 //! // Level of detail: drop the lateral thinner than 10 cm.
 //! let lod = chaincode::decode(&chaincode::reduce_lod(&code, 0.10)).unwrap();
