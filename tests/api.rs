@@ -95,7 +95,7 @@ async fn ingest_poll_and_download() {
             }
             assert_problem(srv.get(&format!("/v1/trees/{id}/skeleton?format=obj")).await, 400).await;
 
-            // Meshes: GLB (default), OBJ and PLY at every LOD.
+            // Meshes: GLB (default) at every LOD, OBJ and PLY.
             let res = srv.get(&format!("/v1/trees/{id}/mesh")).await;
             assert_eq!(res.status(), 200);
             assert_eq!(res.headers()["content-type"], "model/gltf-binary");
@@ -104,6 +104,7 @@ async fn ingest_poll_and_download() {
             for lod in 0..=3 {
                 let res = srv.get(&format!("/v1/trees/{id}/mesh?format=glb&lod={lod}")).await;
                 assert_eq!(res.status(), 200);
+                assert_eq!(&res.bytes().await.unwrap()[..4], b"glTF", "LOD {lod}");
             }
             let res = srv.get(&format!("/v1/trees/{id}/mesh?format=obj&lod=0")).await;
             assert_eq!(res.headers()["content-type"], "model/obj");
@@ -813,15 +814,14 @@ async fn cityjson_seq_streams_compressed() {
             assert_eq!(res.status(), 200);
             assert_eq!(res.headers()["content-encoding"], encoding);
             let body = res.bytes().await.expect("a complete compressed stream");
-            if encoding == "gzip" {
-                let mut text = String::new();
-                std::io::Read::read_to_string(
-                    &mut flate2::read::GzDecoder::new(&body[..]),
-                    &mut text,
-                )
-                .unwrap();
-                assert_eq!(assert_valid_cityjson_seq(&text), 0);
-            }
+            let mut reader: Box<dyn std::io::Read> = if encoding == "gzip" {
+                Box::new(flate2::read::GzDecoder::new(&body[..]))
+            } else {
+                Box::new(brotli_decompressor::Decompressor::new(&body[..], 4096))
+            };
+            let mut text = String::new();
+            reader.read_to_string(&mut text).unwrap();
+            assert_eq!(assert_valid_cityjson_seq(&text), 0, "{encoding}");
         }
         srv.stop().await;
     })
@@ -859,7 +859,7 @@ async fn a_rescan_with_the_same_external_id_replaces_the_model() {
                 .await
                 .unwrap();
             assert_ne!(after["model_id"], before["model_id"]);
-            assert!(after["version"].as_i64() > before["version"].as_i64());
+            assert!(after["version"].as_i64().unwrap() > before["version"].as_i64().unwrap());
             assert_eq!(after["species"], "Betula");
             let page: Value = srv.get("/v1/trees").await.json().await.unwrap();
             assert_eq!(page["numberReturned"], 1);

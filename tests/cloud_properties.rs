@@ -136,6 +136,29 @@ proptest! {
         }
     }
 
+    /// A block of returns with a few strays more than the gap above it:
+    /// the strays go, all of them and nothing else (the random clouds
+    /// below often drop nothing, or everything, and so check nothing).
+    #[test]
+    fn strays_above_a_block_are_dropped(
+        side in 5usize..10,
+        raw in prop::collection::vec((-8i32..8, -8i32..8, 0i32..40), 1..=8),
+        gap_m in 0.5f32..6.0,
+    ) {
+        let step = 0.25;
+        let mut pts: Vec<Vec3> = (0..side * side * side)
+            .map(|k| Vec3::new((k % side) as f32, (k / side % side) as f32, (k / side / side) as f32) * step)
+            .collect();
+        let block = pts.len();
+        let top = (side - 1) as f32 * step;
+        pts.extend(raw.iter().map(|&(x, y, z)| Vec3::new(x as f32, y as f32, top + gap_m + 0.01 + z as f32 * 0.1)));
+        let cloud = PointCloud::from_points(DVec3::new(1000.0, 2000.0, 0.0), pts);
+        let rule = IsolatedGroups { min_gap_m: gap_m, gap_spacings: 0.0, max_group: 8, max_share: 0.01 };
+        let (kept, strays) = remove_isolated_groups(&cloud, &rule).expect("strays to drop");
+        prop_assert_eq!((strays.above, strays.below, strays.beside), (raw.len(), 0, 0));
+        prop_assert_eq!(&kept.points[..], &cloud.points[..block]);
+    }
+
     /// Whatever the cloud, a dropped return has no kept return within the
     /// gap, the survivors are original points in input order, and no more
     /// than the share (or one group) goes.

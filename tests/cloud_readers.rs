@@ -479,7 +479,7 @@ fn point_limit_is_enforced_while_streaming() {
 }
 
 #[test]
-fn overlong_xyz_line_is_rejected_not_buffered() {
+fn overlong_xyz_line_is_rejected() {
     let line = vec![b'1'; 1 << 20];
     let err = read_bytes(&line, &ReadOptions::default()).unwrap_err();
     assert_malformed(err, Format::Xyz, Location::Line(1));

@@ -430,6 +430,15 @@ fn compare_is_symmetric_in_anchors_and_exact_on_identity() {
     let near = compare(&t, &moved, 0.5, 0.0);
     assert_eq!((near.recall, near.precision), (1.0, 1.0));
     assert!(near.mean_distance_m <= 0.2 + 1e-3, "{near:?}");
+    // Swapped, recall and precision trade places (all truth radii count);
+    // at 0.1 m part of the 0.2 m shift is out of reach.
+    let (there, back) = (compare(&t, &moved, 0.1, 0.0), compare(&moved, &t, 0.1, 0.0));
+    assert!(there.recall > 0.05 && there.recall < 0.95, "{there:?}");
+    assert_eq!(
+        (there.recall, there.precision),
+        (back.precision, back.recall)
+    );
+    assert!((there.mean_distance_m - back.mean_distance_m).abs() < 1e-5);
     moved.set_anchor(Anchor::at(t.anchor().origin + DVec3::new(100.0, 0.0, 0.0)));
     let far = compare(&t, &moved, 0.5, 0.0);
     assert_eq!((far.recall, far.precision), (0.0, 0.0));
@@ -649,25 +658,21 @@ proptest! {
 /// trunk point every 0.6 m, and return a 99 km tree after seconds of work
 /// (and a minute of encoding in the service). Refused before that work.
 #[test]
-fn a_return_kilometres_above_the_crown_is_refused_at_once() {
+fn a_return_kilometres_above_the_crown_is_refused_before_the_leader_grows() {
     let truth = truth(Species::Oak, 3);
     let scan = simulate_als(&truth, &AlsOptions::default(), 3);
     let mut points = scan.points;
     let top = points.iter().map(|p| p.z).fold(f32::MIN, f32::max);
     points.push(Vec3::new(0.0, 0.0, top + 99_000.0));
     let cloud = PointCloud::from_points(scan.offset, points);
-    let started = std::time::Instant::now();
+    // `TooTall` comes from the height check ahead of the trunk and leader
+    // (no clock here: speed is measured by the benches, not asserted).
     let err = reconstruct(&cloud, &Params::default()).unwrap_err();
     assert!(
         matches!(err, ReconstructError::TooTall { height_m, .. } if height_m > 99_000.0),
         "{err}"
     );
     assert!(err.to_string().contains("more than any tree"), "{err}");
-    assert!(
-        started.elapsed().as_secs_f32() < 1.0,
-        "{:?}",
-        started.elapsed()
-    );
 }
 
 /// Leaf-off oaks (AHN is flown leaf-off) return from their bare twigs, in

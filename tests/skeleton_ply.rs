@@ -46,9 +46,14 @@ fn the_ply_holds_nodes_radii_and_edges_parent_to_child() {
     assert_eq!(body.len(), tree.len() * 28 + tree.internode_count() * 8);
     for id in tree.ids() {
         let at = id.index() * 28;
-        let x = f64::from_le_bytes(body[at..at + 8].try_into().unwrap());
+        let coordinate =
+            |k: usize| f64::from_le_bytes(body[at + 8 * k..at + 8 * k + 8].try_into().unwrap());
         let r = f32::from_le_bytes(body[at + 24..at + 28].try_into().unwrap());
-        assert_eq!(x, tree.absolute_position(id).x);
+        let p = tree.absolute_position(id);
+        assert_eq!(
+            (coordinate(0), coordinate(1), coordinate(2)),
+            (p.x, p.y, p.z)
+        );
         assert_eq!(r, tree.radius(id));
     }
     let edges = &body[tree.len() * 28..];
@@ -331,8 +336,13 @@ proptest! {
             bytes[i] = byte;
         }
         bytes.truncate(cut.index(bytes.len() + 1));
+        // What is read is a usable skeleton: finite, radii not negative.
         if let Ok(back) = Skeleton::from_ply(&bytes) {
-            prop_assert!(!back.is_empty());
+            prop_assert!(back.anchor().origin.is_finite());
+            for node in back.nodes() {
+                prop_assert!(node.position.is_finite());
+                prop_assert!(node.radius_m.is_finite() && node.radius_m >= 0.0);
+            }
         }
     }
 }
@@ -363,12 +373,14 @@ fn a_skeleton_without_radii_gets_pipe_model_radii_near_the_true_dbh() {
                 trunk.dbh_m()
             );
             assert_eq!(trunk.method, DbhMethod::Estimated);
-            if species != Species::Poplar {
-                assert!(
-                    (0.8..1.3).contains(&ratio),
-                    "{species:?} {seed}: ratio {ratio}"
-                );
-            }
+            // The poplars' band pins the documented limitation: if it ever
+            // closes, the docs must say so.
+            let band = if species == Species::Poplar {
+                0.3..0.5
+            } else {
+                0.8..1.3
+            };
+            assert!(band.contains(&ratio), "{species:?} {seed}: ratio {ratio}");
             for id in bare.ids().skip(1) {
                 let parent = bare.parent(id).unwrap();
                 assert!(bare.radius(id) > 0.0);

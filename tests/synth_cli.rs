@@ -101,6 +101,7 @@ fn a_scan_draw_rescans_the_same_tree_with_another_scanner_seed() {
     let dir = tempfile::tempdir().unwrap();
     let anchor = Anchor::at(DVec3::new(85_000.0, 446_000.0, 0.0));
     let tree = generate(&TreeParams::preset(Species::Pine), 4, anchor);
+    assert_eq!(scan_seed(4, 0), 4, "draw 0 is the seed's own scan");
     for draw in [0, 2] {
         let path = dir.path().join(format!("draw{draw}.ply"));
         let out = silva()
@@ -133,6 +134,7 @@ fn a_scan_draw_rescans_the_same_tree_with_another_scanner_seed() {
 /// checked to the millimetre in absolute coordinates.
 fn assert_file_holds(path: &std::path::Path, expected: &PointCloud, what: &str) {
     let (back, _) = read_path(path, &ReadOptions::default()).unwrap();
+    assert!(!expected.is_empty(), "{what}: nothing to compare");
     assert_eq!(back.len(), expected.len(), "{what}");
     for i in (0..back.len()).step_by(97) {
         let d = back.absolute(i) - expected.absolute(i);
@@ -145,6 +147,9 @@ fn assert_file_holds(path: &std::path::Path, expected: &PointCloud, what: &str) 
 
 #[test]
 fn bad_arguments_fail_with_one_line() {
+    // In a directory of its own, so that a wrongly accepted case writes
+    // nowhere in the repository.
+    let dir = tempfile::tempdir().unwrap();
     for args in [
         vec!["synth", "--species", "oak"],
         vec!["synth", "--scan", "als", "--density", "0"],
@@ -171,6 +176,9 @@ fn bad_arguments_fail_with_one_line() {
         vec!["synth", "--truth", "t.json", "-o", "cloud.laz"],
         vec!["synth", "--scan", "als", "-o", "cloud.e57"],
     ] {
-        silva().args(&args).fails_with_one_line();
+        silva()
+            .current_dir(dir.path())
+            .args(&args)
+            .fails_with_one_line();
     }
 }

@@ -387,15 +387,19 @@ mod tests {
 
     #[test]
     fn a_thin_lateral_does_not_hide_its_thicker_parent() {
+        // Only the lateral's first 0.42 m, inside the trunk, is hidden: none
+        // of the trunk's 3 m, though the lateral's cylinder reaches into it.
         let truth = trunk_with_lateral();
         let c = compare(&truth, &truth, 0.1, 0.0);
-        assert_eq!(c.hidden_share, {
-            let hidden = hidden(&truth, DVec3::ZERO, &samples(&truth, DVec3::ZERO, 0.0));
-            share(hidden.iter().copied())
-        });
+        let truth_m = 3.0 + 2.0 * 2f32.sqrt();
+        assert!(
+            (c.hidden_share - 0.3 * 2f32.sqrt() / truth_m).abs() < 0.02,
+            "{}",
+            c.hidden_share
+        );
         let trunk = samples(&truth, DVec3::ZERO, 0.2);
+        assert_eq!(trunk.at.len(), 60);
         assert!(hidden(&truth, DVec3::ZERO, &trunk).iter().all(|h| !h));
-        assert_eq!(c.visible_recall, 1.0);
     }
 
     #[test]

@@ -694,9 +694,6 @@ mod tests {
         assert_eq!(s.counts, vec![8, 8]);
     }
 
-    /// A sparse scan of a 0.4 m-radius stem: with fine bins each band is
-    /// a thin, gappy ring. Joined through the neighbouring bins it gives one
-    /// node per bin on the axis; without the window, pieces of bark do.
     /// A scanner sees half of a 0.3 m stem: one band of an arc, whose parent
     /// section lies off to the side and below (sections of a thick stem
     /// jitter). The node goes to the stem's axis within the band, not along
@@ -777,6 +774,9 @@ mod tests {
         )
     }
 
+    /// A sparse scan of a 0.4 m-radius stem: with fine bins each band is
+    /// a thin, gappy ring. Joined through the neighbouring bins it gives one
+    /// node per bin on the axis; without the window, pieces of bark do.
     #[test]
     fn a_thick_stem_gives_one_node_per_band_on_its_axis() {
         let off_axis = |s: &Sections| {
