@@ -8,10 +8,14 @@ use std::io::Cursor;
 use libfuzzer_sys::fuzz_target;
 use silva::cloud::{Format, ReadOptions, read_as};
 
+#[path = "../checks/cloud.rs"]
+mod checks;
+use checks::check_read;
+
 fuzz_target!(|data: &[u8]| {
     // A small limit keeps each run fast; the limit itself is what is tested.
     let opts = ReadOptions {
         max_points: 100_000,
     };
-    let _ = read_as(Cursor::new(data), Format::Las, &opts);
+    check_read(read_as(Cursor::new(data), Format::Las, &opts), &opts);
 });
