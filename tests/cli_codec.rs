@@ -27,6 +27,16 @@ fn max_error_m(a: &Skeleton, b: &Skeleton) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// `silva decode INPUT --skeleton INPUT.json` in `dir`, read back.
+fn decoded(dir: &std::path::Path, input: &str) -> Skeleton {
+    let out = format!("{input}.json");
+    silva()
+        .current_dir(dir)
+        .args(["decode", input, "--skeleton", &out])
+        .succeeds();
+    Skeleton::from_json(&std::fs::read_to_string(dir.join(out)).unwrap()).unwrap()
+}
+
 #[test]
 fn encode_decode_export_round_trip() {
     let dir = tempfile::tempdir().unwrap();
@@ -45,22 +55,12 @@ fn encode_decode_export_round_trip() {
         ])
         .succeeds();
 
-    silva()
-        .current_dir(d)
-        .args(["decode", "l.json", "--skeleton", "from_ls.json"])
-        .succeeds();
-    let from_ls =
-        Skeleton::from_json(&std::fs::read_to_string(d.join("from_ls.json")).unwrap()).unwrap();
+    let from_ls = decoded(d, "l.json");
     assert!(max_error_m(&tree, &from_ls) <= 0.001 + 1e-5);
 
     // The chain code at its default r = 5: every node within √3·d/2 of the
     // original, d being the mean internode length over 5 (Eq. 2).
-    silva()
-        .current_dir(d)
-        .args(["decode", "c.bin", "--skeleton", "full_cc.json"])
-        .succeeds();
-    let full_cc =
-        Skeleton::from_json(&std::fs::read_to_string(d.join("full_cc.json")).unwrap()).unwrap();
+    let full_cc = decoded(d, "c.bin");
     let lengths: Vec<f64> = tree
         .internodes()
         .map(|(p, c)| f64::from(tree.position(p).distance(tree.position(c))))
