@@ -15,6 +15,64 @@ use silva::mesh::Lod;
 
 const ORIGIN: DVec3 = DVec3::new(155_000.0, 463_000.0, 1.0);
 
+/// `n` letters and digits that do not compress (a fixed pseudo-random
+/// sequence), as a hostile or careless client might send.
+fn random_text(n: usize, seed: u64) -> String {
+    const ALPHABET: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+    let mut state = seed;
+    (0..n)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            char::from(ALPHABET[(state >> 33) as usize % ALPHABET.len()])
+        })
+        .collect()
+}
+
+/// Metadata of 3000 random characters was stored on SQLite but failed
+/// PostgreSQL's index on `species` and `external_id` (its btree rows stop
+/// at about 2.7 kB), after the cloud was decoded: a 500. Each field is
+/// refused over 256 bytes, with a 400, before the cloud is decoded; 256
+/// random bytes are stored on both backends. A NaN height filter is a 400
+/// too (SQLite took it as no filter, PostgreSQL as matching nothing).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metadata_beyond_256_bytes_is_refused_on_both_backends() {
+    let scan = synthetic_scan(ORIGIN, 7);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            for field in ["species", "external_id", "source", "crs"] {
+                let query = format!("{field}={}", random_text(3000, 1));
+                let problem = assert_problem(srv.upload(&query, &scan).await, 400).await;
+                let detail = problem["detail"].as_str().unwrap();
+                assert!(
+                    detail.contains(&format!("{field}: at most 256 bytes, found 3000")),
+                    "{detail}"
+                );
+            }
+            assert_eq!(srv.tree_count().await, 0, "a refused upload stored nothing");
+            let fits = format!(
+                "species={}&external_id={}",
+                random_text(256, 2),
+                random_text(256, 3)
+            );
+            assert_eq!(srv.upload(&fits, &scan).await.status(), 202);
+            assert_eq!(srv.tree_count().await, 1);
+            for filter in [
+                "min_height=NaN",
+                "max_height=inf",
+                "min_height=-inf&max_height=3",
+            ] {
+                assert_problem(srv.get(&format!("/v1/trees?{filter}")).await, 400).await;
+            }
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ingest_poll_and_download() {
     let scan = synthetic_scan(ORIGIN, 7);

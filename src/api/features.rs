@@ -62,6 +62,19 @@ impl ListQuery {
                 "limit: expected 1 to {MAX_LIMIT}, found {limit}"
             )));
         }
+        for (name, value) in [
+            ("min_height", self.min_height),
+            ("max_height", self.max_height),
+        ] {
+            // NaN would bind as NULL on SQLite (no filter) and match nothing
+            // on PostgreSQL: refuse it, as `parse_bbox` refuses it.
+            if value.is_some_and(|h| !h.is_finite()) {
+                return Err(ApiError::BadRequest(format!(
+                    "{name}: expected a finite number of metres, found {}",
+                    value.unwrap_or_default()
+                )));
+            }
+        }
         if let (Some(lo), Some(hi)) = (self.min_height, self.max_height) {
             if lo > hi {
                 return Err(ApiError::BadRequest(format!(

@@ -44,16 +44,20 @@ pub(super) fn routes(config: &Config) -> Router<Arc<AppState>> {
 #[into_params(parameter_in = Query)]
 pub(super) struct IngestQuery {
     /// Species name, e.g. `Quercus robur`.
+    #[param(max_length = 256)]
     species: Option<String>,
     /// The inventory's own id; uploading again with the same id adds a scan
     /// to that tree (a rescan) and replaces its model.
+    #[param(max_length = 256)]
     external_id: Option<String>,
     /// Acquisition date, `YYYY-MM-DD`.
     #[param(format = Date)]
     acquired: Option<String>,
     /// Where the scan comes from, e.g. `TLS` or `AHN4`.
+    #[param(max_length = 256)]
     source: Option<String>,
     /// CRS of the coordinates, e.g. `EPSG:28992`.
+    #[param(max_length = 256)]
     crs: Option<String>,
     /// Reconstruction pipeline: `auto` (default: chosen from point density
     /// and trunk coverage), `dense` (terrestrial/mobile) or `airborne`.
@@ -113,6 +117,7 @@ pub(super) async fn create_tree(
         other => ApiError::BadRequest(other.body_text()),
     })?;
     check_acquired(query.acquired.as_deref())?;
+    check_metadata_lengths(&query)?;
     let options = JobOptions {
         mode: query.mode.unwrap_or_default(),
         crs: query.crs.clone(),
@@ -162,6 +167,34 @@ fn check_acquired(date: Option<&str>) -> Result<(), ApiError> {
     time::Date::parse(date, &format)
         .map(|_| ())
         .map_err(|_| ApiError::BadRequest(format!("acquired: expected YYYY-MM-DD, found {date:?}")))
+}
+
+/// Longest metadata string an upload may carry, in bytes.
+const MAX_METADATA_BYTES: usize = 256;
+
+/// Refuses metadata longer than [`MAX_METADATA_BYTES`] before the cloud is
+/// decoded: PostgreSQL cannot index a few kilobytes of `external_id` or
+/// `species` (its btree rows stop at about 2.7 kB), so a long random one
+/// failed the insert after the upload was decoded and stored nothing.
+fn check_metadata_lengths(query: &IngestQuery) -> Result<(), ApiError> {
+    let fields = [
+        ("species", &query.species),
+        ("external_id", &query.external_id),
+        ("source", &query.source),
+        ("crs", &query.crs),
+    ];
+    for (name, value) in fields {
+        if let Some(len) = value
+            .as_ref()
+            .map(String::len)
+            .filter(|&n| n > MAX_METADATA_BYTES)
+        {
+            return Err(ApiError::BadRequest(format!(
+                "{name}: at most {MAX_METADATA_BYTES} bytes, found {len}"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The upload read and LAZ-compressed off the async workers, at most
