@@ -68,10 +68,9 @@ impl ListQuery {
         ] {
             // NaN would bind as NULL on SQLite (no filter) and match nothing
             // on PostgreSQL: refuse it, as `parse_bbox` refuses it.
-            if value.is_some_and(|h| !h.is_finite()) {
+            if let Some(h) = value.filter(|h| !h.is_finite()) {
                 return Err(ApiError::BadRequest(format!(
-                    "{name}: expected a finite number of metres, found {}",
-                    value.unwrap_or_default()
+                    "{name}: expected a finite number of metres, found {h}"
                 )));
             }
         }
