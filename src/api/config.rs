@@ -50,8 +50,9 @@ pub struct Config {
     /// Largest accepted point cloud, in points.
     #[arg(long, env = "SILVA_MAX_POINTS", default_value_t = DEFAULT_MAX_POINTS)]
     pub max_points: usize,
-    /// Time limit of one request, in seconds (uploads with `?wait=true`
-    /// answer 202 instead when the job is not finished by then).
+    /// Time limit of one request, in seconds, 1 to 86400 (a longer one is
+    /// taken as a day; uploads with `?wait=true` answer 202 instead when the
+    /// job is not finished by then).
     #[arg(long, env = "SILVA_REQUEST_TIMEOUT_SECS", default_value_t = DEFAULT_TIMEOUT_SECS)]
     pub request_timeout_secs: u64,
     /// Requests handled at once; more wait in line.
@@ -106,9 +107,11 @@ impl Config {
         }
     }
 
-    /// The request time limit.
+    /// The request time limit, 1 s to a day: a
+    /// longer one overflowed the deadline of a `wait=true` upload (`Instant
+    /// + Duration` panics past the clock's range), a 500 on every one.
     pub fn request_timeout(&self) -> Duration {
-        Duration::from_secs(self.request_timeout_secs.max(1))
+        Duration::from_secs(self.request_timeout_secs.clamp(1, MAX_REQUEST_TIMEOUT_SECS))
     }
 
     /// The job time limit; `None` for 0 (or one too long to represent):
@@ -127,6 +130,9 @@ impl Config {
     }
 }
 
+/// Longest request time limit, in seconds (a day).
+const MAX_REQUEST_TIMEOUT_SECS: u64 = 86_400;
+
 /// Parses a non-negative, finite number of seconds.
 fn seconds(text: &str) -> Result<f64, String> {
     let secs: f64 = text.parse().map_err(|e| format!("{e}"))?;
@@ -134,5 +140,21 @@ fn seconds(text: &str) -> Result<f64, String> {
         Ok(secs)
     } else {
         Err("expected a finite number of seconds, 0 or more".into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_request_timeout_is_clamped_to_a_second_and_a_day() {
+        let mut config = Config::new("sqlite::memory:");
+        for (secs, expected) in [(0, 1), (60, 60), (u64::MAX, MAX_REQUEST_TIMEOUT_SECS)] {
+            config.request_timeout_secs = secs;
+            assert_eq!(config.request_timeout(), Duration::from_secs(expected));
+        }
+        // The `wait=true` deadline can be taken from it.
+        let _ = std::time::Instant::now() + config.request_timeout();
     }
 }

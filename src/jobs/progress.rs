@@ -91,13 +91,15 @@ impl Default for Progress {
 }
 
 impl Progress {
-    /// Progress of a step that must end within `limit` from now (`None`:
-    /// no limit).
+    /// Progress of a step that must end within `limit` from now (`None`,
+    /// or a limit past what the clock can represent: no limit).
     pub fn with_limit(limit: Option<Duration>) -> Self {
         Self {
             fraction: Arc::default(),
             stage: Arc::default(),
-            deadline: limit.map(|l| Instant::now() + l),
+            // `Instant + Duration` panics past the clock's range
+            // (`--job-time-limit-secs 1e19` did, in every worker).
+            deadline: limit.and_then(|l| Instant::now().checked_add(l)),
             limit: limit.unwrap_or(Duration::MAX),
         }
     }
@@ -184,5 +186,14 @@ mod tests {
             "{err}"
         );
         assert!(err.to_string().contains("time limit of 0"), "{err}");
+    }
+
+    #[test]
+    fn a_limit_past_the_clocks_range_is_no_deadline() {
+        let far = Progress::with_limit(Some(Duration::MAX));
+        assert_eq!(far.deadline(), None);
+        far.enter(Stage::Reading).unwrap();
+        let secs = Duration::from_secs_f64(1e19);
+        assert_eq!(Progress::with_limit(Some(secs)).deadline(), None);
     }
 }
