@@ -202,3 +202,45 @@ fn several_scan_draws_are_tallied_per_draw_and_together() {
         .fails_with_one_line();
     assert!(line.contains("--scan-draws"), "{line}");
 }
+
+/// Flags that clap's types let through are refused before any tree is
+/// made: a seed range past `u64` wrapped to other trees under the same
+/// names, a NaN tolerance scored every tree's recall 0, and a huge
+/// `--repeat` panicked on a capacity overflow.
+#[test]
+fn out_of_range_flags_are_refused_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("r.json");
+    let eval = |extra: &[&str]| {
+        let mut cmd = silva();
+        cmd.args(["eval", "--synthetic", "2", "--scan", "als", "--repeat", "1"])
+            .args(extra)
+            .arg("--report")
+            .arg(&report);
+        cmd
+    };
+    for (flags, says) in [
+        (&["--seed", "18446744073709551615"][..], "--seed"),
+        (&["--tolerance", "NaN"][..], "--tolerance"),
+        (&["--tolerance=-0.5"][..], "--tolerance"),
+        (&["--min-truth-radius", "inf"][..], "--min-truth-radius"),
+    ] {
+        let line = eval(flags).fails_with_one_line();
+        assert!(line.contains(says), "{flags:?}: {line}");
+    }
+    let out = eval(&["--repeat", "100000000000000000"]).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "a huge --repeat was accepted");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("--repeat"), "{stderr}");
+    assert!(!report.exists(), "a refused run wrote a report");
+    // The last seed is fine for one tree.
+    silva()
+        .args(["eval", "--synthetic", "1", "--scan", "als", "--repeat", "1"])
+        .args(["--seed", "18446744073709551615", "--report"])
+        .arg(&report)
+        .succeeds();
+    let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let name = json["trees"][0]["name"].as_str().unwrap();
+    assert!(name.contains("-s18446744073709551615-"), "{name}");
+}

@@ -44,9 +44,9 @@ pub struct Args {
     /// Reconstruction pipeline.
     #[arg(long, value_enum, default_value_t = Mode::Auto)]
     mode: Mode,
-    /// Timed reconstructions per tree (the median is reported).
-    #[arg(long, default_value_t = 3)]
-    repeat: usize,
+    /// Timed reconstructions per tree, 1 to 1000 (the median is reported).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    repeat: u64,
     /// Recall/precision tolerance in metres [default: 0.10 for tls, 0.5 for als].
     #[arg(long)]
     tolerance: Option<f32>,
@@ -109,6 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "nothing to evaluate: give --data DIR and/or --synthetic N"
     );
     args.settings.validate()?;
+    validate(&args)?;
     let opts = eval_options(&args);
     let mut rows = Vec::new();
     if let Some(dir) = &args.data {
@@ -154,6 +155,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses what clap's types let through: a seed range past `u64` (tree
+/// `i` uses seed + i, which wrapped to other trees under the same names),
+/// and a tolerance or radius that is not a finite length (a NaN tolerance
+/// made every recall 0 without a word).
+fn validate(args: &Args) -> anyhow::Result<()> {
+    let trees = u64::try_from(args.synthetic).unwrap_or(u64::MAX);
+    anyhow::ensure!(
+        args.seed.checked_add(trees.saturating_sub(1)).is_some(),
+        "--seed {} plus --synthetic {} must stay below 2^64 (tree i uses seed + i)",
+        args.seed,
+        args.synthetic
+    );
+    if let Some(t) = args.tolerance {
+        anyhow::ensure!(
+            t.is_finite() && t > 0.0,
+            "--tolerance must be a positive distance in metres, got {t}"
+        );
+    }
+    if let Some(r) = args.min_truth_radius {
+        anyhow::ensure!(
+            r.is_finite() && r >= 0.0,
+            "--min-truth-radius must be a radius in metres, 0 or more, got {r}"
+        );
+    }
+    Ok(())
+}
+
 fn eval_options(args: &Args) -> EvalOptions {
     let als = args.scan == Scan::Als;
     EvalOptions {
@@ -161,7 +189,8 @@ fn eval_options(args: &Args) -> EvalOptions {
             mode: args.mode,
             ..Options::default()
         },
-        repeat: args.repeat,
+        // At most 1000 (clap's range), so the cast is exact.
+        repeat: args.repeat as usize,
         tolerance_m: args.tolerance.unwrap_or(if als { 0.5 } else { 0.10 }),
         min_truth_radius_m: args
             .min_truth_radius
