@@ -210,6 +210,45 @@ async fn wait_answers_201_with_the_tree() {
     .await;
 }
 
+/// A `wait=true` upload that waited in line for a request slot counted
+/// its wait for the job from after the decode, so it ran past the request
+/// time limit: a 503 for a scan that was stored and queued (a retry stored
+/// it twice). One slot, a 1 s limit and no workers: the first upload holds
+/// the slot for its 0.8 s wait; the second, queued behind it, must answer
+/// 202 with its job, not 503.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_waiting_upload_that_queued_for_its_slot_answers_before_the_time_limit() {
+    let scan = synthetic_scan(ORIGIN, 15);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            cfg.max_concurrent_requests = 1;
+            cfg.request_timeout_secs = 1;
+            let srv = TestServer::start(cfg).await;
+            let (first, second) = tokio::join!(srv.upload("wait=true", &scan), async {
+                tokio::time::sleep(Duration::from_millis(100)).await;
+                srv.upload("wait=true", &scan).await
+            });
+            for res in [first, second] {
+                let status = res.status();
+                let body = res.text().await.unwrap();
+                assert_eq!(status, 202, "{body}");
+            }
+            let trees: Value = srv
+                .get("/v1/collections/trees/items")
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(trees["features"].as_array().unwrap().len(), 2, "{trees}");
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn write_routes_need_a_key() {
     let scan = synthetic_scan(ORIGIN, 9);
@@ -849,6 +888,52 @@ async fn cityjson_seq_pages_on_past_a_first_page_with_trees_in_another_crs() {
         assert_eq!(res.status(), 200);
         let text = res.text().await.unwrap();
         assert_eq!(assert_valid_cityjson_seq(&text), 121);
+        srv.stop().await;
+    })
+    .await;
+}
+
+/// A bbox of ±1e16 m put the stream's `translate` at −1e16, and every
+/// vertex of every tree saturated to 2^63 − 1: a valid-looking stream of
+/// trees at the wrong place. The translate now stays within the
+/// coordinates a stored tree can have.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cityjson_seq_places_trees_right_under_a_huge_bbox() {
+    on_both(|url| async move {
+        let store = silva::store::Store::connect(&url, 2).await.unwrap();
+        store_tree(&store, ORIGIN, "EPSG:28992").await;
+        store.close().await;
+        let srv = TestServer::start(config(&url)).await;
+        for bbox in ["-1e16,-1e16,1e16,1e16", "-1e300,-1e300,1e300,1e300"] {
+            let res = srv.get(&format!("/v1/cityjson?bbox={bbox}&lod=0")).await;
+            assert_eq!(res.status(), 200, "{bbox}");
+            let text = res.text().await.unwrap();
+            assert_eq!(assert_valid_cityjson_seq(&text), 1, "{bbox}");
+            let mut lines = text.lines();
+            let header: serde_json::Value = serde_json::from_str(lines.next().unwrap()).unwrap();
+            let feature: serde_json::Value = serde_json::from_str(lines.next().unwrap()).unwrap();
+            let translate = &header["transform"]["translate"];
+            let scale = &header["transform"]["scale"];
+            let lowest = feature["vertices"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| {
+                    let real = |k: usize| {
+                        translate[k].as_f64().unwrap()
+                            + v[k].as_i64().unwrap() as f64 * scale[k].as_f64().unwrap()
+                    };
+                    DVec3::new(real(0), real(1), real(2))
+                })
+                .min_by(|a, b| a.z.total_cmp(&b.z))
+                .expect("the tree has vertices");
+            // The stored skeleton's root is at ORIGIN with a 0.2 m radius.
+            let off = (lowest - ORIGIN).truncate().length();
+            assert!(
+                off < 0.25,
+                "{bbox}: lowest vertex {lowest} is {off} m from {ORIGIN}"
+            );
+        }
         srv.stop().await;
     })
     .await;

@@ -23,6 +23,7 @@ use super::extract::{ApiPath, ApiQuery};
 use super::features::parse_bbox;
 use super::{ApiError, AppState, ReadAccess};
 use crate::cityjson::{self, MEDIA_TYPE, MEDIA_TYPE_SEQ, TreeInfo};
+use crate::cloud::MAX_ABS_COORDINATE_M;
 use crate::mesh::Lod;
 use crate::skeleton::Skeleton;
 use crate::store::{TreeFilter, TreeRow};
@@ -204,13 +205,17 @@ pub(super) async fn cityjson_seq(
 }
 
 /// The stream's `translate`: the bbox's lower corner, millimetre-snapped so
-/// that integer vertices stay exact.
+/// that integer vertices stay exact, and moved inside the coordinates a
+/// stored tree can have ([`MAX_ABS_COORDINATE_M`]): a corner at −1e16 m
+/// put every vertex past `i64` (each coordinate saturated to 2^63 − 1),
+/// while within the clamp a vertex is at most about 2·10^12 mm, exact in
+/// both `i64` and `f64`.
 fn seq_translate(bbox: [f64; 4]) -> DVec3 {
-    DVec3::new(
-        (bbox[0] * 1000.0).round() / 1000.0,
-        (bbox[1] * 1000.0).round() / 1000.0,
-        0.0,
-    )
+    let corner = |v: f64| {
+        let v = v.clamp(-MAX_ABS_COORDINATE_M, MAX_ABS_COORDINATE_M);
+        (v * 1000.0).round() / 1000.0
+    };
+    DVec3::new(corner(bbox[0]), corner(bbox[1]), 0.0)
 }
 
 /// The id after which the next page starts, when `page` was a full one.

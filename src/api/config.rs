@@ -55,11 +55,13 @@ pub struct Config {
     /// job is not finished by then).
     #[arg(long, env = "SILVA_REQUEST_TIMEOUT_SECS", default_value_t = DEFAULT_TIMEOUT_SECS)]
     pub request_timeout_secs: u64,
-    /// Requests handled at once; more wait in line.
+    /// Requests handled at once, 1 to 1,048,576 (a larger one is taken as
+    /// that); more wait in line.
     #[arg(long, env = "SILVA_MAX_CONCURRENT_REQUESTS", default_value_t = DEFAULT_MAX_CONCURRENT)]
     pub max_concurrent_requests: usize,
-    /// Concurrent reconstructions in this process (default: CPU count; 0
-    /// makes a pure API node that leaves jobs to other processes).
+    /// Concurrent reconstructions in this process, at most 1,024 (a larger
+    /// one is taken as that; default: CPU count; 0 makes a pure API node
+    /// that leaves jobs to other processes).
     #[arg(long, env = "SILVA_WORKERS")]
     pub workers: Option<usize>,
     /// Database connections in the pool.
@@ -122,13 +124,31 @@ impl Config {
             .flatten()
     }
 
-    /// Worker count, the CPU count unless set.
+    /// Worker count, the CPU count unless set, at most 1,024: a
+    /// count past 2^61 panicked the service at start (tokio's semaphores
+    /// stop there), and 10^8 spawned 10^8 idle tasks.
     pub fn worker_count(&self) -> usize {
-        self.workers.unwrap_or_else(|| {
-            std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-        })
+        self.workers
+            .unwrap_or_else(|| {
+                std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+            })
+            .min(MAX_WORKERS)
+    }
+
+    /// Requests handled at once, 1 to 2^20 (a limit
+    /// past 2^61 panicked the service at start).
+    pub fn concurrency_limit(&self) -> usize {
+        self.max_concurrent_requests
+            .clamp(1, MAX_CONCURRENT_REQUESTS)
     }
 }
+
+/// Most job workers one process runs. Each holds a whole cloud in memory
+/// while it works, so a machine runs out of memory long before this.
+const MAX_WORKERS: usize = 1024;
+
+/// Most requests one process handles at once.
+const MAX_CONCURRENT_REQUESTS: usize = 1 << 20;
 
 /// Longest request time limit, in seconds (a day).
 const MAX_REQUEST_TIMEOUT_SECS: u64 = 86_400;
@@ -156,5 +176,23 @@ mod tests {
         }
         // The `wait=true` deadline can be taken from it.
         let _ = std::time::Instant::now() + config.request_timeout();
+    }
+
+    #[test]
+    fn worker_and_request_counts_are_capped() {
+        let mut config = Config::new("sqlite::memory:");
+        for (workers, expected) in [(0, 0), (3, 3), (usize::MAX, MAX_WORKERS)] {
+            config.workers = Some(workers);
+            assert_eq!(config.worker_count(), expected);
+        }
+        config.workers = None;
+        assert!((1..=MAX_WORKERS).contains(&config.worker_count()));
+        for (limit, expected) in [(0, 1), (7, 7), (usize::MAX, MAX_CONCURRENT_REQUESTS)] {
+            config.max_concurrent_requests = limit;
+            assert_eq!(config.concurrency_limit(), expected);
+        }
+        // Both sizes make semaphores.
+        let _ = tokio::sync::Semaphore::new(config.concurrency_limit());
+        let _ = tokio::sync::Semaphore::new(MAX_WORKERS.max(2));
     }
 }

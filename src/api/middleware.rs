@@ -108,6 +108,18 @@ pub(crate) async fn weaken_etag_when_encoded(req: Request, next: Next) -> Respon
     res
 }
 
+/// When a request reached the service, before it waited for a slot under
+/// the concurrency limit: the request time limit runs from then, so a
+/// handler that spends what is left of it must count from then too.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Arrival(pub(crate) Instant);
+
+/// Stamps each request with its [`Arrival`].
+pub(crate) async fn stamp_arrival(mut req: Request, next: Next) -> Response {
+    req.extensions_mut().insert(Arrival(Instant::now()));
+    next.run(req).await
+}
+
 /// Records the latency of each request under its route template.
 pub(crate) async fn record_metrics(
     State(state): State<Arc<AppState>>,

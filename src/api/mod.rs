@@ -255,9 +255,10 @@ pub fn router(state: Arc<AppState>) -> Router {
             middleware::record_metrics,
         ))
         .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
-        .layer(GlobalConcurrencyLimitLayer::new(
-            config.max_concurrent_requests.max(1),
-        ))
+        .layer(GlobalConcurrencyLimitLayer::new(config.concurrency_limit()))
+        // Outside the concurrency limit, inside the time limit: the time a
+        // request waits for its slot counts against its time limit.
+        .layer(axum::middleware::from_fn(middleware::stamp_arrival))
         .layer(TimeoutLayer::with_status_code(
             StatusCode::SERVICE_UNAVAILABLE,
             config.request_timeout(),

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
-use axum::extract::{DefaultBodyLimit, State};
+use axum::extract::{DefaultBodyLimit, Extension, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -19,6 +19,7 @@ use uuid::Uuid;
 use super::downloads::not_modified;
 use super::error::Problem;
 use super::extract::{ApiPath, ApiQuery, RawUpload};
+use super::middleware::Arrival;
 use super::schema::{Binary, Job, Tree};
 use super::{ApiError, AppState, BaseUrl, Config, ReadAccess, WriteAccess};
 use crate::jobs::JobOptions;
@@ -106,8 +107,10 @@ pub(super) async fn create_tree(
     BaseUrl(base): BaseUrl,
     ApiQuery(query): ApiQuery<IngestQuery>,
     _: RawUpload,
+    arrival: Option<Extension<Arrival>>,
     body: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
+    let arrival = arrival.map_or_else(Instant::now, |Extension(Arrival(at))| at);
     let body = body.map_err(|rejection| match rejection {
         BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
             ApiError::PayloadTooLarge {
@@ -142,7 +145,7 @@ pub(super) async fn create_tree(
     tracing::info!(tree = %ingested.tree_id, job = %ingested.job_id, points = decoded.point_count, "scan stored");
 
     if query.wait {
-        let budget = state.config.request_timeout().mul_f32(0.8);
+        let budget = wait_budget(state.config.request_timeout(), arrival.elapsed());
         let job = wait_for_job(&state, ingested.job_id, budget).await?;
         if job.state().is_terminal() {
             return finished_upload(&state, &base, &job).await;
@@ -158,6 +161,16 @@ pub(super) async fn create_tree(
         format!("{base}/v1/jobs/{}", job.id),
         axum::Json(Job::from_row(&job, &base)),
     ))
+}
+
+/// How long a `wait=true` upload may wait for its job: 80 % of the request
+/// time limit, less what the request has already spent (in line for a
+/// slot, receiving and decoding the body). Counted from the job's queueing
+/// instead, a slow decode pushed the wait past the time limit: the client
+/// got a 503 for a scan that was stored and queued, and a retry stored it
+/// twice.
+fn wait_budget(time_limit: Duration, spent: Duration) -> Duration {
+    time_limit.mul_f32(0.8).saturating_sub(spent)
 }
 
 /// Refuses an acquisition date that is not `YYYY-MM-DD`.
@@ -235,7 +248,7 @@ async fn finished_upload(state: &AppState, base: &str, job: &JobRow) -> Result<R
 
 /// Polls a job until it ends or `budget` runs out, woken early whenever a
 /// job of this process finishes (other processes' jobs are seen by polling).
-pub(super) async fn wait_for_job(
+async fn wait_for_job(
     state: &AppState,
     job_id: Uuid,
     budget: Duration,
@@ -327,5 +340,22 @@ pub(super) async fn delete_tree(
         Ok(StatusCode::NO_CONTENT)
     } else {
         Err(ApiError::NotFound(format!("no tree {id}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_wait_budget_counts_from_the_requests_arrival() {
+        let limit = Duration::from_secs(10);
+        assert_eq!(wait_budget(limit, Duration::ZERO), Duration::from_secs(8));
+        assert_eq!(
+            wait_budget(limit, Duration::from_secs(3)),
+            Duration::from_secs(5)
+        );
+        assert_eq!(wait_budget(limit, Duration::from_secs(9)), Duration::ZERO);
+        assert_eq!(wait_budget(limit, Duration::MAX), Duration::ZERO);
     }
 }

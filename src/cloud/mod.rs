@@ -153,7 +153,7 @@ mod xyz;
 pub use error::{CloudError, Format, Location};
 pub(crate) use ply::{PlyDocument, read_document};
 pub use read::{
-    DETECT_LEN, FileDetails, LasDetails, ReadOptions, detect, read, read_as, read_bytes, read_path,
-    read_path_with_details, read_with_details,
+    DETECT_LEN, FileDetails, LasDetails, MAX_ABS_COORDINATE_M, ReadOptions, detect, read, read_as,
+    read_bytes, read_path, read_path_with_details, read_with_details,
 };
 pub use write::{format_for_path, to_laz_bytes, write, write_path};

@@ -233,9 +233,11 @@ pub(super) struct Attributes {
     pub(super) classification: Option<u8>,
 }
 
-/// Largest absolute coordinate accepted: beyond any projected or geocentric
-/// CRS in metres, so larger values are corrupt data.
-const MAX_ABS_M: f64 = 1e9;
+/// Largest absolute coordinate a reader accepts, in metres: beyond any
+/// projected or geocentric CRS, so larger values are corrupt data. Every
+/// stored tree lies within it (plus its span), which is what lets exports
+/// bound their integer vertices.
+pub const MAX_ABS_COORDINATE_M: f64 = 1e9;
 /// Largest distance from the offset (the first point, see [`CloudBuilder`]):
 /// relative `f32` coordinates keep 1 mm resolution to about 8 km and 8 mm
 /// at 100 km; beyond that the cloud is not a tree or a tile, and the
@@ -300,7 +302,7 @@ impl CloudBuilder {
     ) -> Result<(), CloudError> {
         let reason = if !p.is_finite() {
             Some(format!("non-finite coordinate ({}, {}, {})", p.x, p.y, p.z))
-        } else if p.abs().max_element() > MAX_ABS_M {
+        } else if p.abs().max_element() > MAX_ABS_COORDINATE_M {
             Some(format!(
                 "implausible coordinate ({}, {}, {}) m",
                 p.x, p.y, p.z
