@@ -322,6 +322,40 @@ async fn write_routes_need_a_key() {
     .await;
 }
 
+/// Uploads wait for room in the upload memory budget (a largest body per
+/// decode slot) instead of each buffering its body on arrival. With the
+/// body limit at one scan, the budget holds two: six uploads with a
+/// `Content-Length` and two chunked ones (which reserve the whole limit)
+/// sent at once must all be answered, each as before.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_uploads_queue_for_upload_memory() {
+    let scan = synthetic_scan(ORIGIN, 16);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            cfg.max_body_bytes = scan.len();
+            let srv = TestServer::start(cfg).await;
+            let sized = futures::future::join_all(
+                (0..6).map(|_| async { srv.upload("", &scan).await.status().as_u16() }),
+            );
+            let chunked =
+                futures::future::join_all((0..2).map(|_| chunked_upload_status(&srv, 1, 12)));
+            let (sized, chunked) = tokio::time::timeout(
+                Duration::from_secs(60),
+                futures::future::join(sized, chunked),
+            )
+            .await
+            .expect("every upload answered within a minute");
+            assert_eq!(sized, [202; 6]);
+            assert_eq!(chunked, [422; 2]);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_input_is_a_4xx_problem() {
     on_both(|url| async move {

@@ -135,6 +135,17 @@ impl Config {
             .min(MAX_WORKERS)
     }
 
+    /// Upload bytes held in memory at once, in KiB: room for as many
+    /// largest uploads as uploads are decoded at once, so a thousand
+    /// concurrent uploads queue for memory instead of each buffering its
+    /// body (1,024 × 256 MB). At most `u32::MAX` KiB (4 TiB), which is
+    /// what one `acquire_many` can ask for.
+    pub fn upload_budget_kib(&self) -> u32 {
+        let slots = self.worker_count().max(2);
+        let bytes = self.max_body_bytes.max(1).saturating_mul(slots);
+        u32::try_from(bytes.div_ceil(1024)).unwrap_or(u32::MAX)
+    }
+
     /// Requests handled at once, 1 to 2^20 (a limit
     /// past 2^61 panicked the service at start).
     pub fn concurrency_limit(&self) -> usize {
@@ -176,6 +187,18 @@ mod tests {
         }
         // The `wait=true` deadline can be taken from it.
         let _ = std::time::Instant::now() + config.request_timeout();
+    }
+
+    #[test]
+    fn the_upload_budget_holds_a_largest_upload_per_decode_slot() {
+        let mut config = Config::new("sqlite::memory:");
+        config.workers = Some(1);
+        config.max_body_bytes = 1 << 20;
+        assert_eq!(config.upload_budget_kib(), 2 * 1024);
+        config.workers = Some(4);
+        assert_eq!(config.upload_budget_kib(), 4 * 1024);
+        config.max_body_bytes = usize::MAX;
+        assert_eq!(config.upload_budget_kib(), u32::MAX);
     }
 
     #[test]

@@ -79,6 +79,9 @@ pub struct AppState {
     pub cache: ArtifactCache,
     /// Bounds how many uploads are decoded at once (CPU-bound).
     pub decode_slots: Semaphore,
+    /// Bounds the upload bytes held in memory at once, in KiB (see
+    /// [`Config::upload_budget_kib`]).
+    pub upload_memory: Semaphore,
 }
 
 /// Why the service could not start.
@@ -136,6 +139,7 @@ impl Server {
             metrics: Metrics::new()?,
             cache: ArtifactCache::new(config.cache_bytes),
             decode_slots: Semaphore::new(workers.max(2)),
+            upload_memory: Semaphore::new(config.upload_budget_kib() as usize),
             config,
         });
         let (listener, addr) = bind(state.config.listen).await?;

@@ -6,12 +6,13 @@ use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
-use axum::extract::{DefaultBodyLimit, Extension, State};
+use axum::extract::{DefaultBodyLimit, Extension, FromRequest, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use bytes::Bytes;
 use serde::Deserialize;
+use tokio::sync::SemaphorePermit;
 use tower_http::limit::RequestBodyLimitLayer;
 use utoipa::IntoParams;
 use uuid::Uuid;
@@ -108,9 +109,13 @@ pub(super) async fn create_tree(
     ApiQuery(query): ApiQuery<IngestQuery>,
     _: RawUpload,
     arrival: Option<Extension<Arrival>>,
-    body: Result<Bytes, BytesRejection>,
+    request: Request,
 ) -> Result<Response, ApiError> {
     let arrival = arrival.map_or_else(Instant::now, |Extension(Arrival(at))| at);
+    check_acquired(query.acquired.as_deref())?;
+    check_metadata_lengths(&query)?;
+    let memory = reserve_upload_memory(&state, request.headers()).await?;
+    let body = Bytes::from_request(request, &()).await;
     let body = body.map_err(|rejection| match rejection {
         BytesRejection::FailedToBufferBody(FailedToBufferBody::LengthLimitError(_)) => {
             ApiError::PayloadTooLarge {
@@ -119,8 +124,6 @@ pub(super) async fn create_tree(
         }
         other => ApiError::BadRequest(other.body_text()),
     })?;
-    check_acquired(query.acquired.as_deref())?;
-    check_metadata_lengths(&query)?;
     let options = JobOptions {
         mode: query.mode.unwrap_or_default(),
         crs: query.crs.clone(),
@@ -141,6 +144,7 @@ pub(super) async fn create_tree(
                 .map_err(|e| ApiError::Internal(e.to_string()))?,
         })
         .await?;
+    drop(memory);
     state.events.notify_enqueued();
     tracing::info!(tree = %ingested.tree_id, job = %ingested.job_id, points = decoded.point_count, "scan stored");
 
@@ -208,6 +212,32 @@ fn check_metadata_lengths(query: &IngestQuery) -> Result<(), ApiError> {
         }
     }
     Ok(())
+}
+
+/// Waits until the upload's body fits in the service's upload memory
+/// budget ([`Config::upload_budget_kib`]) and reserves it: its
+/// `Content-Length`, or the largest body allowed when it is sent in chunks.
+/// The reservation lasts until the scan is stored. Before, every request
+/// buffered its body on arrival, so a burst of large uploads (up to the
+/// concurrency limit) could hold hundreds of gigabytes.
+async fn reserve_upload_memory<'a>(
+    state: &'a AppState,
+    headers: &HeaderMap,
+) -> Result<SemaphorePermit<'a>, ApiError> {
+    let limit = state.config.max_body_bytes;
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<usize>().ok());
+    let bytes = declared.unwrap_or(limit).min(limit);
+    let kib = u32::try_from(bytes.div_ceil(1024))
+        .unwrap_or(u32::MAX)
+        .clamp(1, state.config.upload_budget_kib());
+    state
+        .upload_memory
+        .acquire_many(kib)
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))
 }
 
 /// The upload read and LAZ-compressed off the async workers, at most
