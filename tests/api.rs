@@ -973,6 +973,43 @@ async fn cityjson_seq_places_trees_right_under_a_huge_bbox() {
     .await;
 }
 
+/// Each CityJSONSeq export holds an export slot (8 with two workers) for
+/// as long as it streams, and frees it at its end: twelve exports one
+/// after the other, and twelve at once, are all answered within a 1 s
+/// request limit (a slot never freed would make the ninth wait out the
+/// limit and answer 503).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cityjson_seq_exports_free_their_slots() {
+    on_both(|url| async move {
+        let store = silva::store::Store::connect(&url, 2).await.unwrap();
+        store_tree(&store, ORIGIN, "EPSG:28992").await;
+        store.close().await;
+        let mut cfg = config(&url);
+        cfg.request_timeout_secs = 1;
+        let srv = TestServer::start(cfg).await;
+        let (x, y) = (ORIGIN.x, ORIGIN.y);
+        let path = format!(
+            "/v1/cityjson?bbox={},{},{},{}&lod=0",
+            x - 1.0,
+            y - 1.0,
+            x + 1.0,
+            y + 1.0
+        );
+        let export = || async {
+            let res = srv.get(&path).await;
+            assert_eq!(res.status(), 200);
+            assert_valid_cityjson_seq(&res.text().await.unwrap())
+        };
+        for _ in 0..12 {
+            assert_eq!(export().await, 1);
+        }
+        let together = futures::future::join_all((0..12).map(|_| export())).await;
+        assert_eq!(together, [1; 12]);
+        srv.stop().await;
+    })
+    .await;
+}
+
 /// Found by schemathesis, whose client asks for gzip: the compression layer
 /// polled the finished stream again, the stream panicked, and every
 /// compressed CityJSONSeq was cut off before its first byte.

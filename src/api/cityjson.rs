@@ -2,6 +2,7 @@
 //! of an area as a streamed CityJSONSeq (`/v1/cityjson`).
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use axum::Router;
 use axum::body::Body;
@@ -138,9 +139,16 @@ pub(super) struct SeqQuery {
 /// Trees per database page while streaming.
 const SEQ_PAGE: u32 = 100;
 
+/// How many request time limits a CityJSONSeq export may run (ten minutes
+/// at the default minute).
+const EXPORT_TIME_LIMITS: u32 = 10;
+
 /// Every reconstructed tree in a bbox as CityJSONSeq: a CityJSON header
 /// line, then one CityJSONFeature line per tree. The stream is produced
-/// page by page, so memory stays flat for any area.
+/// page by page, so memory stays flat for any area. A stream holds one of
+/// a few export slots (four per decode slot) while it runs, and ends early
+/// (a cut-off body, logged) once it has run ten request time limits: its
+/// headers leave before the request limits apply to the rest.
 #[utoipa::path(
     get,
     path = "/v1/cityjson",
@@ -158,8 +166,16 @@ pub(super) async fn cityjson_seq(
     ApiQuery(query): ApiQuery<SeqQuery>,
 ) -> Result<Response, ApiError> {
     let lod = parse_lod(query.lod.unwrap_or(2))?;
+    let bbox = parse_bbox(&query.bbox)?;
+    let slot = state
+        .export_slots
+        .clone()
+        .acquire_owned()
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?;
+    let deadline = Instant::now() + state.config.request_timeout() * EXPORT_TIME_LIMITS;
     let mut filter = TreeFilter {
-        bbox: Some(parse_bbox(&query.bbox)?),
+        bbox: Some(bbox),
         crs: query.crs,
         limit: SEQ_PAGE,
         ..TreeFilter::default()
@@ -181,15 +197,24 @@ pub(super) async fn cityjson_seq(
     let translate = seq_translate(filter.bbox.unwrap_or_default());
     let header = cityjson::seq_header(translate, filter.crs.as_deref(), None).to_string() + "\n";
     let first_lines = render(first, lod, translate).await;
-    let rest = futures::stream::unfold((after, filter), move |(after, filter)| {
+    // The slot travels with the stream: it is freed when the stream ends
+    // or the client goes away.
+    let rest = futures::stream::unfold((after, filter, slot), move |(after, filter, slot)| {
         let state = state.clone();
         async move {
             let filter = TreeFilter {
                 after: Some(after?),
                 ..filter
             };
+            if Instant::now() > deadline {
+                let limit = state.config.request_timeout() * EXPORT_TIME_LIMITS;
+                let err = format!(
+                    "the export ran past its time limit of {limit:?}; ask for a smaller bbox"
+                );
+                return Some((Err(stream_error(&err)), (None, filter, slot)));
+            }
             let (lines, after) = next_page(&state, &filter, lod, translate).await;
-            Some((lines, (after, filter)))
+            Some((lines, (after, filter, slot)))
         }
     });
     // Fused: the compression layer polls the body again after its end, and

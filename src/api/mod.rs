@@ -82,6 +82,10 @@ pub struct AppState {
     /// Bounds the upload bytes held in memory at once, in KiB (see
     /// [`Config::upload_budget_kib`]).
     pub upload_memory: Semaphore,
+    /// Bounds how many CityJSONSeq exports stream at once: a stream
+    /// renders every tree of its area after its headers are sent, outside
+    /// the request concurrency and time limits.
+    pub export_slots: Arc<Semaphore>,
 }
 
 /// Why the service could not start.
@@ -140,6 +144,7 @@ impl Server {
             cache: ArtifactCache::new(config.cache_bytes),
             decode_slots: Semaphore::new(workers.max(2)),
             upload_memory: Semaphore::new(config.upload_budget_kib() as usize),
+            export_slots: Arc::new(Semaphore::new(4 * workers.max(2))),
             config,
         });
         let (listener, addr) = bind(state.config.listen).await?;
