@@ -76,6 +76,12 @@ async fn two_processes_run_every_job_exactly_once() {
         return;
     };
     let url = db.url();
+    db.run(every_job_once(url)).await;
+}
+
+/// The scenario of [`two_processes_run_every_job_exactly_once`] on the
+/// PostgreSQL database at `url`.
+async fn every_job_once(url: String) {
     let bases: Vec<String> = (0..2)
         .map(|_| format!("http://127.0.0.1:{}", free_port()))
         .collect();
@@ -173,5 +179,4 @@ async fn two_processes_run_every_job_exactly_once() {
     assert_eq!((trees, models, attempts), (N as i64, N as i64, N as i64));
     conn.close().await.unwrap();
     drop(_servers);
-    db.drop_db().await;
 }

@@ -78,6 +78,18 @@ impl TestDb {
         }
     }
 
+    /// Runs `scenario`, then removes the database, even when the scenario
+    /// panics (the panic then goes on): a failing test leaves no database
+    /// behind on the shared server.
+    pub async fn run(self, scenario: impl Future<Output = ()>) {
+        let outcome =
+            futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(scenario)).await;
+        self.drop_db().await;
+        if let Err(panic) = outcome {
+            std::panic::resume_unwind(panic);
+        }
+    }
+
     /// Removes the database.
     pub async fn drop_db(self) {
         if let TestDb::Postgres(name) = self {
@@ -101,13 +113,7 @@ where
     sqlite.drop_db().await;
     if let Some(pg) = TestDb::postgres("the PostgreSQL half of this test").await {
         let url = pg.url();
-        // Drop the database even when the scenario panics.
-        let outcome =
-            futures::FutureExt::catch_unwind(std::panic::AssertUnwindSafe(scenario(url))).await;
-        pg.drop_db().await;
-        if let Err(panic) = outcome {
-            std::panic::resume_unwind(panic);
-        }
+        pg.run(scenario(url)).await;
     }
 }
 
