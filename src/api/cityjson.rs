@@ -145,10 +145,12 @@ const EXPORT_TIME_LIMITS: u32 = 10;
 
 /// Every reconstructed tree in a bbox as CityJSONSeq: a CityJSON header
 /// line, then one CityJSONFeature line per tree. The stream is produced
-/// page by page, so memory stays flat for any area. A stream holds one of
-/// a few export slots (four per decode slot) while it runs, and ends early
-/// (a cut-off body, logged) once it has run ten request time limits: its
-/// headers leave before the request limits apply to the rest.
+/// page by page, so memory stays flat for any area. Its headers leave
+/// before the request limits apply to the rest, so the rest has its own:
+/// each page is rendered in one of a few export slots (four per decode
+/// slot; a client that stops reading holds none), and a stream that has
+/// run ten request time limits ends at its next page (a cut-off body, and
+/// a logged reason).
 #[utoipa::path(
     get,
     path = "/v1/cityjson",
@@ -167,12 +169,6 @@ pub(super) async fn cityjson_seq(
 ) -> Result<Response, ApiError> {
     let lod = parse_lod(query.lod.unwrap_or(2))?;
     let bbox = parse_bbox(&query.bbox)?;
-    let slot = state
-        .export_slots
-        .clone()
-        .acquire_owned()
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?;
     let deadline = Instant::now() + state.config.request_timeout() * EXPORT_TIME_LIMITS;
     let mut filter = TreeFilter {
         bbox: Some(bbox),
@@ -196,10 +192,8 @@ pub(super) async fn cityjson_seq(
         .collect();
     let translate = seq_translate(filter.bbox.unwrap_or_default());
     let header = cityjson::seq_header(translate, filter.crs.as_deref(), None).to_string() + "\n";
-    let first_lines = render(first, lod, translate).await;
-    // The slot travels with the stream: it is freed when the stream ends
-    // or the client goes away.
-    let rest = futures::stream::unfold((after, filter, slot), move |(after, filter, slot)| {
+    let first_lines = render(&state, first, lod, translate).await;
+    let rest = futures::stream::unfold((after, filter), move |(after, filter)| {
         let state = state.clone();
         async move {
             let filter = TreeFilter {
@@ -211,10 +205,10 @@ pub(super) async fn cityjson_seq(
                 let err = format!(
                     "the export ran past its time limit of {limit:?}; ask for a smaller bbox"
                 );
-                return Some((Err(stream_error(&err)), (None, filter, slot)));
+                return Some((Err(stream_error(&err)), (None, filter)));
             }
             let (lines, after) = next_page(&state, &filter, lod, translate).await;
-            Some((lines, (after, filter, slot)))
+            Some((lines, (after, filter)))
         }
     });
     // Fused: the compression layer polls the body again after its end, and
@@ -264,7 +258,7 @@ async fn next_page(
     };
     let after = next_after(&page);
     match parse_page(page) {
-        Ok(trees) => (render(trees, lod, translate).await, after),
+        Ok(trees) => (render(state, trees, lod, translate).await, after),
         Err(err) => (Err(stream_error(&err)), None),
     }
 }
@@ -280,13 +274,23 @@ fn parse_page(page: Vec<(TreeRow, String)>) -> Result<Vec<(TreeRow, Skeleton)>, 
         .collect()
 }
 
-/// The feature lines of some trees, built off the runtime.
+/// The feature lines of some trees, built off the runtime in an export
+/// slot (which goes with the blocking task, so that a dropped stream frees
+/// it only when the rendering ends).
 async fn render(
+    state: &AppState,
     trees: Vec<(TreeRow, Skeleton)>,
     lod: Lod,
     translate: DVec3,
 ) -> Result<String, std::io::Error> {
+    let slot = state
+        .export_slots
+        .clone()
+        .acquire_owned()
+        .await
+        .map_err(std::io::Error::other)?;
     tokio::task::spawn_blocking(move || {
+        let _slot = slot;
         let mut out = String::new();
         for (row, skeleton) in &trees {
             let feature = cityjson::city_json_feature(&tree_info(row, skeleton), &[lod], translate);

@@ -139,11 +139,15 @@ impl Config {
     /// largest uploads as uploads are decoded at once, so a thousand
     /// concurrent uploads queue for memory instead of each buffering its
     /// body (1,024 × 256 MB). At most `u32::MAX` KiB (4 TiB), which is
-    /// what one `acquire_many` can ask for.
+    /// what one `acquire_many` can ask for, and at most what a semaphore
+    /// can hold.
     pub fn upload_budget_kib(&self) -> u32 {
         let slots = self.worker_count().max(2);
-        let bytes = self.max_body_bytes.max(1).saturating_mul(slots);
-        u32::try_from(bytes.div_ceil(1024)).unwrap_or(u32::MAX)
+        let per_upload = self.max_body_bytes.max(1).div_ceil(1024);
+        let kib = per_upload
+            .saturating_mul(slots)
+            .min(tokio::sync::Semaphore::MAX_PERMITS);
+        u32::try_from(kib).unwrap_or(u32::MAX)
     }
 
     /// Requests handled at once, 1 to 2^20 (a limit
@@ -195,6 +199,10 @@ mod tests {
         config.workers = Some(1);
         config.max_body_bytes = 1 << 20;
         assert_eq!(config.upload_budget_kib(), 2 * 1024);
+        // Each upload reserves whole KiB: two fit, not one.
+        config.max_body_bytes = (1 << 20) + 1;
+        assert_eq!(config.upload_budget_kib(), 2 * 1025);
+        config.max_body_bytes = 1 << 20;
         config.workers = Some(4);
         assert_eq!(config.upload_budget_kib(), 4 * 1024);
         config.max_body_bytes = usize::MAX;
@@ -214,8 +222,7 @@ mod tests {
             config.max_concurrent_requests = limit;
             assert_eq!(config.concurrency_limit(), expected);
         }
-        // Both sizes make semaphores.
+        // The limit makes a semaphore.
         let _ = tokio::sync::Semaphore::new(config.concurrency_limit());
-        let _ = tokio::sync::Semaphore::new(MAX_WORKERS.max(2));
     }
 }

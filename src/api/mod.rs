@@ -78,13 +78,15 @@ pub struct AppState {
     /// Generated downloads.
     pub cache: ArtifactCache,
     /// Bounds how many uploads are decoded at once (CPU-bound).
-    pub decode_slots: Semaphore,
+    pub decode_slots: Arc<Semaphore>,
     /// Bounds the upload bytes held in memory at once, in KiB (see
     /// [`Config::upload_budget_kib`]).
-    pub upload_memory: Semaphore,
-    /// Bounds how many CityJSONSeq exports stream at once: a stream
-    /// renders every tree of its area after its headers are sent, outside
-    /// the request concurrency and time limits.
+    pub upload_memory: Arc<Semaphore>,
+    /// The permits `upload_memory` started with.
+    pub upload_budget_kib: u32,
+    /// Bounds how many pages of CityJSONSeq exports are rendered at once: a
+    /// stream renders the trees of its area after its headers are sent,
+    /// outside the request concurrency and time limits.
     pub export_slots: Arc<Semaphore>,
 }
 
@@ -142,8 +144,9 @@ impl Server {
             events: Arc::new(JobEvents::default()),
             metrics: Metrics::new()?,
             cache: ArtifactCache::new(config.cache_bytes),
-            decode_slots: Semaphore::new(workers.max(2)),
-            upload_memory: Semaphore::new(config.upload_budget_kib() as usize),
+            decode_slots: Arc::new(Semaphore::new(workers.max(2))),
+            upload_memory: Arc::new(Semaphore::new(config.upload_budget_kib() as usize)),
+            upload_budget_kib: config.upload_budget_kib(),
             export_slots: Arc::new(Semaphore::new(4 * workers.max(2))),
             config,
         });

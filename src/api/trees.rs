@@ -12,7 +12,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use bytes::Bytes;
 use serde::Deserialize;
-use tokio::sync::SemaphorePermit;
+use tokio::sync::OwnedSemaphorePermit;
 use tower_http::limit::RequestBodyLimitLayer;
 use utoipa::IntoParams;
 use uuid::Uuid;
@@ -112,8 +112,6 @@ pub(super) async fn create_tree(
     request: Request,
 ) -> Result<Response, ApiError> {
     let arrival = arrival.map_or_else(Instant::now, |Extension(Arrival(at))| at);
-    check_acquired(query.acquired.as_deref())?;
-    check_metadata_lengths(&query)?;
     let memory = reserve_upload_memory(&state, request.headers()).await?;
     let body = Bytes::from_request(request, &()).await;
     let body = body.map_err(|rejection| match rejection {
@@ -124,11 +122,13 @@ pub(super) async fn create_tree(
         }
         other => ApiError::BadRequest(other.body_text()),
     })?;
+    check_acquired(query.acquired.as_deref())?;
+    check_metadata_lengths(&query)?;
     let options = JobOptions {
         mode: query.mode.unwrap_or_default(),
         crs: query.crs.clone(),
     };
-    let decoded = decode_upload(&state, body).await?;
+    let (decoded, memory) = decode_upload(&state, body, memory).await?;
     let ingested = state
         .store
         .ingest(&NewIngest {
@@ -217,13 +217,15 @@ fn check_metadata_lengths(query: &IngestQuery) -> Result<(), ApiError> {
 /// Waits until the upload's body fits in the service's upload memory
 /// budget ([`Config::upload_budget_kib`]) and reserves it: its
 /// `Content-Length`, or the largest body allowed when it is sent in chunks.
-/// The reservation lasts until the scan is stored. Before, every request
+/// The reservation lasts until the scan is stored, or until its decode ends
+/// when the request is dropped (past its time limit) while it decodes.
+/// Before, every request
 /// buffered its body on arrival, so a burst of large uploads (up to the
 /// concurrency limit) could hold hundreds of gigabytes.
-async fn reserve_upload_memory<'a>(
-    state: &'a AppState,
+async fn reserve_upload_memory(
+    state: &AppState,
     headers: &HeaderMap,
-) -> Result<SemaphorePermit<'a>, ApiError> {
+) -> Result<OwnedSemaphorePermit, ApiError> {
     let limit = state.config.max_body_bytes;
     let declared = headers
         .get(header::CONTENT_LENGTH)
@@ -232,27 +234,39 @@ async fn reserve_upload_memory<'a>(
     let bytes = declared.unwrap_or(limit).min(limit);
     let kib = u32::try_from(bytes.div_ceil(1024))
         .unwrap_or(u32::MAX)
-        .clamp(1, state.config.upload_budget_kib());
+        .clamp(1, state.upload_budget_kib.max(1));
     state
         .upload_memory
-        .acquire_many(kib)
+        .clone()
+        .acquire_many_owned(kib)
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))
 }
 
 /// The upload read and LAZ-compressed off the async workers, at most
-/// `decode_slots` at a time (each holds a whole cloud in memory).
+/// `decode_slots` at a time (each holds a whole cloud in memory). The
+/// decode slot and the upload's `memory` go with the blocking task: when
+/// the request is dropped past its time limit, the task still runs to its
+/// end, and both stay taken until then. `memory` comes back with the scan.
 async fn decode_upload(
     state: &AppState,
     body: Bytes,
-) -> Result<crate::jobs::PreparedScan, ApiError> {
-    let _slot = state
+    memory: OwnedSemaphorePermit,
+) -> Result<(crate::jobs::PreparedScan, OwnedSemaphorePermit), ApiError> {
+    let slot = state
         .decode_slots
-        .acquire()
+        .clone()
+        .acquire_owned()
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))?;
     let max_points = state.config.max_points;
-    Ok(tokio::task::spawn_blocking(move || crate::jobs::prepare_scan(&body, max_points)).await??)
+    let (scan, memory) = tokio::task::spawn_blocking(move || {
+        let scan = crate::jobs::prepare_scan(&body, max_points);
+        drop((body, slot));
+        (scan, memory)
+    })
+    .await?;
+    Ok((scan?, memory))
 }
 
 /// Answer for a `wait=true` upload whose job ended.
