@@ -145,8 +145,10 @@ const EXPORT_TIME_LIMITS: u32 = 10;
 
 /// Every reconstructed tree in a bbox as CityJSONSeq: a CityJSON header
 /// line, then one CityJSONFeature line per tree. The stream is produced
-/// page by page, so memory stays flat for any area. Its headers leave
-/// before the request limits apply to the rest, so the rest has its own:
+/// page by page, so memory stays flat for any area.
+///
+/// The stream's headers leave before the request limits apply to the
+/// rest, so the rest has its own:
 /// each page is rendered in one of a few export slots (four per decode
 /// slot; a client that stops reading holds none), and a stream that has
 /// run ten request time limits ends at its next page (a cut-off body, and
