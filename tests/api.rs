@@ -381,13 +381,7 @@ async fn paused_chunked_upload(srv: &TestServer, pause: Duration) -> (u16, std::
     let released = std::time::Instant::now();
     let mut answer = Vec::new();
     let _ = tcp.read_to_end(&mut answer).await;
-    let answer = String::from_utf8_lossy(&answer);
-    let status = answer
-        .split_whitespace()
-        .nth(1)
-        .and_then(|code| code.parse().ok())
-        .unwrap_or_else(|| panic!("no HTTP answer: {answer:?}"));
-    (status, released)
+    (http_status(&answer), released)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -816,7 +810,12 @@ async fn chunked_upload_status(srv: &TestServer, chunks: usize, size: usize) -> 
     let _ = tcp.write_all(b"0\r\n\r\n").await;
     let mut answer = Vec::new();
     let _ = tcp.read_to_end(&mut answer).await;
-    let answer = String::from_utf8_lossy(&answer);
+    http_status(&answer)
+}
+
+/// The status code of a raw HTTP answer.
+fn http_status(answer: &[u8]) -> u16 {
+    let answer = String::from_utf8_lossy(answer);
     answer
         .split_whitespace()
         .nth(1)
@@ -930,6 +929,14 @@ async fn store_tree(store: &silva::store::Store, at: DVec3, crs: &str) {
     assert!(store.complete_job(&job, "filler", &model).await.unwrap());
 }
 
+/// Stores one finished tree at [`ORIGIN`] ([`store_tree`]) in the database
+/// at `url`.
+async fn store_one_tree(url: &str) {
+    let store = silva::store::Store::connect(url, 2).await.unwrap();
+    store_tree(&store, ORIGIN, "EPSG:28992").await;
+    store.close().await;
+}
+
 /// The stream takes its CRS from the first tree and drops the others from
 /// the first page; whether more pages follow depends on the page the
 /// database gave. It stopped after a first page that had lost trees to
@@ -968,9 +975,7 @@ async fn cityjson_seq_pages_on_past_a_first_page_with_trees_in_another_crs() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cityjson_seq_places_trees_right_under_a_huge_bbox() {
     on_both(|url| async move {
-        let store = silva::store::Store::connect(&url, 2).await.unwrap();
-        store_tree(&store, ORIGIN, "EPSG:28992").await;
-        store.close().await;
+        store_one_tree(&url).await;
         let srv = TestServer::start(config(&url)).await;
         for bbox in ["-1e16,-1e16,1e16,1e16", "-1e300,-1e300,1e300,1e300"] {
             let res = srv.get(&format!("/v1/cityjson?bbox={bbox}&lod=0")).await;
@@ -1014,9 +1019,7 @@ async fn cityjson_seq_places_trees_right_under_a_huge_bbox() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cityjson_seq_exports_free_their_slots() {
     on_both(|url| async move {
-        let store = silva::store::Store::connect(&url, 2).await.unwrap();
-        store_tree(&store, ORIGIN, "EPSG:28992").await;
-        store.close().await;
+        store_one_tree(&url).await;
         let mut cfg = config(&url);
         cfg.request_timeout_secs = 1;
         let srv = TestServer::start(cfg).await;
