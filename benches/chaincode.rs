@@ -10,7 +10,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use silva::encode::chaincode::{
-    ChainCode, ChainOptions, Limits, Prediction, RadiusLayout, Resolution, decode,
+    ChainCode, ChainOptions, Limits, Prediction, RadiusLayout, Resolution, Voxelisation, decode,
     decode_compressed, encode,
 };
 
@@ -94,6 +94,15 @@ fn chaincode(c: &mut Criterion) {
     // then the smallest byte form chosen.
     group.bench_function("encode", |b| {
         b.iter(|| encode(black_box(&tree), &ChainOptions::default()).expect("encodable"))
+    });
+    // The same with each node's voxel chosen greedily instead of planned
+    // for the whole tree: what the plan costs.
+    let greedy = ChainOptions {
+        voxelisation: Voxelisation::Predictive,
+        ..ChainOptions::default()
+    };
+    group.bench_function("encode greedy voxels", |b| {
+        b.iter(|| encode(black_box(&tree), &greedy).expect("encodable"))
     });
     group.bench_function("compress", |b| b.iter(|| black_box(&code).compress()));
     // The default picks a damped prediction for this skeleton; the same

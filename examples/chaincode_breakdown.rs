@@ -1,10 +1,10 @@
 //! Where the bytes of a compressed DBF6 chain code go, per skeleton JSON file:
 //! `cargo run --release --example chaincode_breakdown -- a.json b.json …`
 //! (`CC_R=3` for another resolution, `CC_D=0.02` for a fixed voxel size in
-//! metres).
+//! metres, `CC_VOX=nearest|predictive|optimised` for a voxel choice).
 
 use silva::Skeleton;
-use silva::encode::chaincode::{self, ChainOptions, Resolution};
+use silva::encode::chaincode::{self, ChainOptions, Resolution, Voxelisation};
 
 fn entropy_bits(counts: &[usize]) -> f64 {
     let n: usize = counts.iter().sum();
@@ -39,6 +39,12 @@ fn main() {
         let voxel = std::env::var("CC_D").ok().and_then(|v| v.parse().ok());
         let opts = ChainOptions {
             resolution: voxel.map_or(Resolution::PerInternode(r), Resolution::VoxelSize),
+            voxelisation: match std::env::var("CC_VOX").as_deref() {
+                Ok("nearest") => Voxelisation::Nearest,
+                Ok("predictive") => Voxelisation::Predictive,
+                Ok("optimised") => Voxelisation::Optimised,
+                _ => ChainOptions::default().voxelisation,
+            },
             ..ChainOptions::default()
         };
         let code = chaincode::encode(&s, &opts).expect("encodable");

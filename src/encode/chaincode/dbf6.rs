@@ -22,6 +22,7 @@ use std::collections::VecDeque;
 
 use glam::DVec3;
 
+use super::plan;
 use super::radii::quantise;
 use super::split;
 use super::{
@@ -50,71 +51,171 @@ const MOVES: [[i32; 3]; 6] = [
 ///
 /// With `opts.prediction` unset, encodes with every [`Prediction`] weight
 /// and keeps the code whose corrections compress shortest (kind 3's
-/// correction streams, the only part the prediction changes; the paper's
-/// differential prediction on a tie).
+/// correction streams, the only part the prediction and the voxel choice
+/// change; the paper's differential prediction on a tie). With
+/// [`Voxelisation::Optimised`], the voxels of the best of those are then
+/// planned for the whole tree (`plan.rs`), and the planned code is kept
+/// where its corrections compress shorter.
 ///
 /// The result holds at most `Limits::default()` symbols and nodes, so that
 /// every code this function produces can be read back with default limits.
 pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, ChainError> {
-    if let Some(prediction) = opts.prediction {
-        return encode_predicted(skeleton, opts, prediction);
+    let frame = Frame::new(skeleton, opts)?;
+    let greedy = match opts.voxelisation {
+        Voxelisation::Nearest => Voxelisation::Nearest,
+        Voxelisation::Predictive | Voxelisation::Optimised => Voxelisation::Predictive,
+    };
+    let single = opts.prediction.map(|p| [p]);
+    let predictions: &[Prediction] = match &single {
+        Some(one) => one,
+        None => &Prediction::ALL,
+    };
+    let mut best = Shortest::default();
+    for &prediction in predictions {
+        let voxels = greedy_voxels(skeleton, &frame, prediction, greedy);
+        best.offer(emit(skeleton, &frame, prediction, &voxels), voxels);
     }
-    let mut best: Option<(u64, ChainCode)> = None;
-    let mut first_error = None;
-    for prediction in Prediction::ALL {
-        match encode_predicted(skeleton, opts, prediction) {
+    if opts.voxelisation == Voxelisation::Optimised {
+        for _ in 0..PLAN_ROUNDS {
+            let Some((code, start)) = best.code_and_voxels() else {
+                break;
+            };
+            let prediction = code.header.prediction;
+            let voxels = plan::plan(skeleton, &frame.targets, &frame.order, prediction, start);
+            best.offer(emit(skeleton, &frame, prediction, &voxels), voxels);
+        }
+    }
+    best.into_result()
+}
+
+/// Rounds of [`plan::plan`], each from the best code so far. A second round
+/// saved at most one byte per tree on the four real clouds at r = 3, 5 and
+/// 10 (`examples/voxel_choice.rs`) and took as long as the first.
+const PLAN_ROUNDS: usize = 1;
+
+/// The code whose corrections compress shortest among those offered, and
+/// the first error if none could be made.
+#[derive(Default)]
+struct Shortest {
+    best: Option<(u64, ChainCode, Vec<[i32; 3]>)>,
+    first_error: Option<ChainError>,
+}
+
+impl Shortest {
+    /// Keeps `code` if its corrections compress shorter than the best's;
+    /// ties keep the earlier one.
+    fn offer(&mut self, code: Result<ChainCode, ChainError>, voxels: Vec<[i32; 3]>) {
+        match code {
             Ok(code) => {
                 let bits = split::correction_bits(&code).unwrap_or(u64::MAX);
-                if best.as_ref().is_none_or(|(fewest, _)| bits < *fewest) {
-                    best = Some((bits, code));
+                if self.best.as_ref().is_none_or(|(fewest, ..)| bits < *fewest) {
+                    self.best = Some((bits, code, voxels));
                 }
             }
             Err(e) => {
-                first_error.get_or_insert(e);
+                self.first_error.get_or_insert(e);
             }
         }
     }
-    match (best, first_error) {
-        (Some((_, code)), _) => Ok(code),
-        (None, Some(e)) => Err(e),
-        (None, None) => unreachable!("Prediction::ALL is not empty"),
+
+    fn code_and_voxels(&self) -> Option<(&ChainCode, &[[i32; 3]])> {
+        self.best
+            .as_ref()
+            .map(|(_, code, voxels)| (code, voxels.as_slice()))
+    }
+
+    fn into_result(self) -> Result<ChainCode, ChainError> {
+        match (self.best, self.first_error) {
+            (Some((_, code, _)), _) => Ok(code),
+            (None, Some(e)) => Err(e),
+            (None, None) => unreachable!("at least one prediction is tried"),
+        }
     }
 }
 
-/// [`encode`] with one step prediction.
-fn encode_predicted(
-    skeleton: &Skeleton,
-    opts: &ChainOptions,
-    prediction: Prediction,
-) -> Result<ChainCode, ChainError> {
-    let step = checked_radius_step(skeleton, opts)?;
-    let limits = Limits::default();
-    let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
-    let targets = scaled_positions(skeleton, voxel_size_m)?;
-    let order = encode_order(skeleton);
+/// What every encoding of one skeleton shares: the radius step, the voxel
+/// size, the node positions in voxel units from the root and the encode
+/// order.
+struct Frame {
+    radius_step_m: f32,
+    voxel_size_m: f64,
+    resolution: Resolution,
+    targets: Vec<DVec3>,
+    order: Vec<NodeId>,
+}
 
+impl Frame {
+    fn new(skeleton: &Skeleton, opts: &ChainOptions) -> Result<Self, ChainError> {
+        let radius_step_m = checked_radius_step(skeleton, opts)?;
+        let voxel_size_m = voxel_size(skeleton, opts.resolution)?;
+        Ok(Self {
+            radius_step_m,
+            voxel_size_m,
+            resolution: opts.resolution,
+            targets: scaled_positions(skeleton, voxel_size_m)?,
+            order: encode_order(skeleton),
+        })
+    }
+}
+
+/// The voxel that `node`'s correction is taken from. Differential
+/// prediction: a main extension repeats (a share of) the previous
+/// internode's step; a branch's first internode is coded in full, from its
+/// fork's voxel.
+fn predicted_voxel(
+    skeleton: &Skeleton,
+    node: NodeId,
+    voxels: &[[i32; 3]],
+    prediction: Prediction,
+) -> [i32; 3] {
+    let parent = skeleton.parent(node).expect("only the root lacks a parent");
+    let is_main = skeleton.children(parent)[0] == node;
+    let predicted_step = match skeleton.parent(parent) {
+        Some(grand) if is_main => {
+            prediction.step(sub(voxels[parent.index()], voxels[grand.index()]))
+        }
+        _ => [0; 3],
+    };
+    add(voxels[parent.index()], predicted_step).expect("within 2^29")
+}
+
+/// Every node's voxel chosen one at a time, parents first
+/// ([`Voxelisation::Nearest`] or [`Voxelisation::Predictive`]).
+fn greedy_voxels(
+    skeleton: &Skeleton,
+    frame: &Frame,
+    prediction: Prediction,
+    mode: Voxelisation,
+) -> Vec<[i32; 3]> {
     let mut voxels = vec![[0i32; 3]; skeleton.len()];
+    for &node in &frame.order[1..] {
+        let predicted = predicted_voxel(skeleton, node, &voxels, prediction);
+        voxels[node.index()] = choose_voxel(frame.targets[node.index()], predicted, mode);
+    }
+    voxels
+}
+
+/// The code of `voxels` (one per node, by index) under `prediction`.
+fn emit(
+    skeleton: &Skeleton,
+    frame: &Frame,
+    prediction: Prediction,
+    voxels: &[[i32; 3]],
+) -> Result<ChainCode, ChainError> {
+    let limits = Limits::default();
+    let step = frame.radius_step_m;
     let mut symbols = Vec::new();
-    let mut radii_q = Vec::with_capacity(order.len());
+    let mut radii_q = Vec::with_capacity(frame.order.len());
     radii_q.push(quantise(skeleton.radius(NodeId::ROOT), step)?);
     let root_kids = skeleton.children(NodeId::ROOT).len();
     symbols.extend(std::iter::repeat_n(FORK, root_kids.saturating_sub(1)));
-    for &node in &order[1..] {
+    for &node in &frame.order[1..] {
         let parent = skeleton.parent(node).expect("only the root lacks a parent");
         let is_main = skeleton.children(parent)[0] == node;
-        // Differential prediction: a main extension repeats (a share of)
-        // the previous internode's step; a branch's first internode is
-        // coded in full.
-        let predicted_step = match skeleton.parent(parent) {
-            Some(grand) if is_main => {
-                prediction.step(sub(voxels[parent.index()], voxels[grand.index()]))
-            }
-            _ => [0; 3],
-        };
-        let predicted = add(voxels[parent.index()], predicted_step).expect("within 2^29");
-        let v = choose_voxel(targets[node.index()], predicted, opts.voxelisation);
-        voxels[node.index()] = v;
-        let correction = sub(v, predicted);
+        let correction = sub(
+            voxels[node.index()],
+            predicted_voxel(skeleton, node, voxels, prediction),
+        );
         let moves: u32 = correction.iter().map(|c| c.unsigned_abs()).sum();
         let needed = symbols.len() + moves as usize + skeleton.children(node).len() + 2;
         if needed > limits.max_symbols {
@@ -135,8 +236,8 @@ fn encode_predicted(
     }
     Ok(ChainCode {
         header: ChainHeader {
-            voxel_size_m,
-            resolution: match opts.resolution {
+            voxel_size_m: frame.voxel_size_m,
+            resolution: match frame.resolution {
                 Resolution::PerInternode(r) => Some(r),
                 Resolution::VoxelSize(_) => None,
             },
@@ -509,7 +610,7 @@ fn choose_voxel(x: DVec3, predicted: [i32; 3], mode: Voxelisation) -> [i32; 3] {
             for k in lo.z as i32..=hi.z as i32 {
                 let v = [i, j, k];
                 let c = cost(v);
-                if c.1 <= 0.75 && c < best.1 {
+                if c.1 <= plan::REACH_SQ && c < best.1 {
                     best = (v, c);
                 }
             }
