@@ -171,39 +171,83 @@ impl<'a> TreeView<'a> {
     #[inline]
     fn step_cost(
         &self,
-        plan: &Program<'_>,
+        program: &Program<'_>,
         node: NodeId,
         ip: usize,
         ic: usize,
         parent: [i32; 3],
         grand: [i32; 3],
-    ) -> f64 {
-        let cands = &plan.cands[node.index()];
+    ) -> f32 {
+        let cands = program.cands(node);
         let from = self.predicted(node, parent, grand);
-        plan.model
-            .cost(self.kinds[node.index()], sub(cands[ic], from))
-            + plan.best[node.index()][ip * cands.len() + ic]
+        program
+            .model
+            .cost(self.kinds[node.index()], sub(cands[ic], from)) as f32
+            + program.best(node)[ip * cands.len() + ic]
     }
 }
 
-/// The dynamic program's tables.
+/// The dynamic program's tables, each node's a slice of one array.
 struct Program<'m> {
     model: &'m CostModel,
-    /// Candidate voxels per node (the root: the origin only).
-    cands: Vec<Vec<[i32; 3]>>,
-    /// `best[n][ip·|C(n)| + in]`: least cost below `n` given its parent's
-    /// candidate `ip` and its own `in`.
-    best: Vec<Vec<f64>>,
+    /// Node `i`'s candidate voxels are `cands[cand_at[i]..cand_at[i + 1]]`
+    /// (the root's: the origin only).
+    cand_at: Vec<usize>,
+    cands: Vec<[i32; 3]>,
+    /// Node `n`'s table is `best[best_at[i]..best_at[i + 1]]`; its entry
+    /// `ip·|C(n)| + in` is the least cost below `n` given its parent's
+    /// candidate `ip` and its own `in`. Costs are in bits; `f32` keeps
+    /// a fraction of a bit up to trees of millions of internodes.
+    best_at: Vec<usize>,
+    best: Vec<f32>,
 }
 
-/// Every voxel whose centre is within `√3/2` of `x` (voxel units), nearest
-/// first; never empty, as the nearest voxel always qualifies.
-fn candidates(x: DVec3) -> Vec<[i32; 3]> {
+impl<'m> Program<'m> {
+    fn new(skeleton: &Skeleton, targets: &[DVec3], model: &'m CostModel) -> Self {
+        let mut cand_at = Vec::with_capacity(skeleton.len() + 1);
+        let mut cands = Vec::with_capacity(skeleton.len() * 3);
+        for n in skeleton.ids() {
+            cand_at.push(cands.len());
+            match n {
+                NodeId::ROOT => cands.push([0; 3]),
+                _ => push_candidates(&mut cands, targets[n.index()]),
+            }
+        }
+        cand_at.push(cands.len());
+        let count = |i: usize| cand_at[i + 1] - cand_at[i];
+        let mut best_at = Vec::with_capacity(skeleton.len() + 1);
+        let mut len = 0;
+        for n in skeleton.ids() {
+            best_at.push(len);
+            len += skeleton.parent(n).map_or(1, |p| count(p.index())) * count(n.index());
+        }
+        best_at.push(len);
+        Self {
+            model,
+            cand_at,
+            cands,
+            best_at,
+            best: vec![0.0; len],
+        }
+    }
+
+    fn cands(&self, n: NodeId) -> &[[i32; 3]] {
+        &self.cands[self.cand_at[n.index()]..self.cand_at[n.index() + 1]]
+    }
+
+    fn best(&self, n: NodeId) -> &[f32] {
+        &self.best[self.best_at[n.index()]..self.best_at[n.index() + 1]]
+    }
+}
+
+/// Appends every voxel whose centre is within `√3/2` of `x` (voxel units),
+/// nearest first: at least one, as the nearest voxel always qualifies.
+fn push_candidates(out: &mut Vec<[i32; 3]>, x: DVec3) {
     let r = x.round();
     let nearest = [r.x as i32, r.y as i32, r.z as i32];
     let reach = REACH_SQ.sqrt();
     let (lo, hi) = ((x - reach).ceil(), (x + reach).floor());
-    let mut out = vec![nearest];
+    out.push(nearest);
     for i in lo.x as i32..=hi.x as i32 {
         for j in lo.y as i32..=hi.y as i32 {
             for k in lo.z as i32..=hi.z as i32 {
@@ -214,7 +258,6 @@ fn candidates(x: DVec3) -> Vec<[i32; 3]> {
             }
         }
     }
-    out
 }
 
 /// Voxels for every node (by index) that code the corrections in fewer
@@ -231,40 +274,33 @@ pub(super) fn plan(
 ) -> Vec<[i32; 3]> {
     let tree = TreeView::new(skeleton, prediction);
     let model = CostModel::of(&tree, start);
-    let cands = skeleton
-        .ids()
-        .map(|n| match n {
-            NodeId::ROOT => vec![[0; 3]],
-            _ => candidates(targets[n.index()]),
-        })
-        .collect();
-    let mut program = Program {
-        model: &model,
-        cands,
-        best: vec![Vec::new(); skeleton.len()],
-    };
+    let mut program = Program::new(skeleton, targets, &model);
+    let mut table = Vec::new();
     for &n in order.iter().rev() {
-        program.best[n.index()] = least_below(&tree, &program, n);
+        least_below(&tree, &program, n, &mut table);
+        let at = program.best_at[n.index()];
+        program.best[at..at + table.len()].copy_from_slice(&table);
     }
     read_back(&tree, &program, order)
 }
 
-/// `best[n]` from its children's tables.
-fn least_below(tree: &TreeView<'_>, program: &Program<'_>, n: NodeId) -> Vec<f64> {
+/// Node `n`'s table from its children's, into `table`.
+fn least_below(tree: &TreeView<'_>, program: &Program<'_>, n: NodeId, table: &mut Vec<f32>) {
     let skeleton = tree.skeleton;
     let parent_cands: &[[i32; 3]] = match skeleton.parent(n) {
-        Some(p) => &program.cands[p.index()],
+        Some(p) => program.cands(p),
         None => &[[0; 3]],
     };
-    let own = &program.cands[n.index()];
-    let mut table = vec![0.0; parent_cands.len() * own.len()];
+    let own = program.cands(n);
+    table.clear();
+    table.resize(parent_cands.len() * own.len(), 0.0);
     for &c in skeleton.children(n) {
-        let n_c = program.cands[c.index()].len();
+        let n_c = program.cands(c).len();
         for (in_, &v_n) in own.iter().enumerate() {
             let least = |v_p: [i32; 3]| {
                 (0..n_c)
                     .map(|ic| tree.step_cost(program, c, in_, ic, v_n, v_p))
-                    .fold(f64::INFINITY, f64::min)
+                    .fold(f32::INFINITY, f32::min)
             };
             match tree.kinds[c.index()] {
                 // A lateral's cost does not depend on the grandparent's voxel.
@@ -282,24 +318,29 @@ fn least_below(tree: &TreeView<'_>, program: &Program<'_>, n: NodeId) -> Vec<f64
             }
         }
     }
-    table
 }
 
 /// The chosen voxels, read from the root down.
 fn read_back(tree: &TreeView<'_>, program: &Program<'_>, order: &[NodeId]) -> Vec<[i32; 3]> {
     let skeleton = tree.skeleton;
-    let mut chosen = vec![0usize; skeleton.len()];
+    let mut chosen = vec![0u8; skeleton.len()];
     let mut voxels = vec![[0i32; 3]; skeleton.len()];
     for &c in &order[1..] {
         let n = skeleton.parent(c).expect("only the root lacks a parent");
         let grand = skeleton.parent(n).unwrap_or(n);
-        let (in_, v_n, v_p) = (chosen[n.index()], voxels[n.index()], voxels[grand.index()]);
-        let ic = (0..program.cands[c.index()].len())
+        let (in_, v_n, v_p) = (
+            usize::from(chosen[n.index()]),
+            voxels[n.index()],
+            voxels[grand.index()],
+        );
+        let cands = program.cands(c);
+        let ic = (0..cands.len())
             .map(|ic| (tree.step_cost(program, c, in_, ic, v_n, v_p), ic))
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
             .map_or(0, |(_, ic)| ic);
-        chosen[c.index()] = ic;
-        voxels[c.index()] = program.cands[c.index()][ic];
+        // At most 8 candidates (two per axis).
+        chosen[c.index()] = ic as u8;
+        voxels[c.index()] = cands[ic];
     }
     voxels
 }
