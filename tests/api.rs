@@ -790,6 +790,49 @@ async fn probes_metrics_and_docs() {
     .await;
 }
 
+/// A client that stops reading its downloads loses its connection after
+/// one request time limit (1 s here) instead of holding it for ever. It
+/// asks for the 1.45 MB Swagger bundle eight times on one connection
+/// (pipelined, more than the kernel buffers on both sides hold), stalls for
+/// 3 s, and then reads what was sent and the end of the stream, short of
+/// the eight copies. A server without the stall limit sends them all once
+/// the client reads again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_stops_reading_loses_its_connection() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    const COPIES: usize = 8;
+    let db = common::TestDb::sqlite();
+    let mut cfg = config(&db.url());
+    cfg.request_timeout_secs = 1;
+    let srv = TestServer::start(cfg).await;
+    let addr = srv.server.local_addr();
+    let path = "/docs/swagger-ui-bundle.js";
+    let body = srv.get(path).await.bytes().await.unwrap().len();
+    assert!(body > 1_000_000, "{body} bytes");
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    socket.set_recv_buffer_size(4096).unwrap();
+    let mut tcp = socket.connect(addr).await.unwrap();
+    let get = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+    let last = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    let requests = get.repeat(COPIES - 1) + &last;
+    tcp.write_all(requests.as_bytes()).await.unwrap();
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let mut got = Vec::new();
+    tokio::time::timeout(Duration::from_secs(20), tcp.read_to_end(&mut got))
+        .await
+        .expect("the server closes the connection")
+        .expect("a clean end of stream");
+    assert_eq!(http_status(&got), 200);
+    assert!(
+        got.len() < COPIES * body,
+        "read {} bytes, {COPIES} copies are {} bytes",
+        got.len(),
+        COPIES * body
+    );
+    srv.stop().await;
+    db.drop_db().await;
+}
+
 /// Sends a chunked upload of `chunks` chunks of `size` digits over a raw
 /// connection (no Content-Length) and returns the status code.
 async fn chunked_upload_status(srv: &TestServer, chunks: usize, size: usize) -> u16 {

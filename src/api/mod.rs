@@ -47,6 +47,7 @@ mod jobs;
 mod metrics;
 mod middleware;
 mod schema;
+mod stall;
 mod system;
 mod trees;
 
@@ -159,6 +160,7 @@ impl Server {
             state.metrics.jobs.clone(),
             signal.clone(),
         );
+        let listener = stall::StallLimited::new(listener, state.config.request_timeout());
         let http = serve_http(listener, router(state.clone()), signal);
         tracing::info!(%addr, backend = state.store.backend(), workers, "silva is serving");
         Ok(Server {
@@ -232,7 +234,7 @@ fn worker_config(config: &Config, workers: usize) -> WorkerConfig {
 
 /// Serves `app` on `listener` until `stop` turns true.
 fn serve_http(
-    listener: tokio::net::TcpListener,
+    listener: stall::StallLimited<tokio::net::TcpListener>,
     app: Router,
     mut stop: watch::Receiver<bool>,
 ) -> JoinHandle<std::io::Result<()>> {
