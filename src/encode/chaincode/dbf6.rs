@@ -158,10 +158,8 @@ impl Frame {
     }
 }
 
-/// The voxel that `node`'s correction is taken from. Differential
-/// prediction: a main extension repeats (a share of) the previous
-/// internode's step; a branch's first internode is coded in full, from its
-/// fork's voxel.
+/// The voxel that `node`'s correction is taken from
+/// ([`plan::Kind::predicted`]).
 fn predicted_voxel(
     skeleton: &Skeleton,
     node: NodeId,
@@ -169,14 +167,12 @@ fn predicted_voxel(
     prediction: Prediction,
 ) -> [i32; 3] {
     let parent = skeleton.parent(node).expect("only the root lacks a parent");
-    let is_main = skeleton.children(parent)[0] == node;
-    let predicted_step = match skeleton.parent(parent) {
-        Some(grand) if is_main => {
-            prediction.step(sub(voxels[parent.index()], voxels[grand.index()]))
-        }
-        _ => [0; 3],
-    };
-    add(voxels[parent.index()], predicted_step).expect("within 2^29")
+    let grand = skeleton.parent(parent).unwrap_or(parent);
+    plan::Kind::of(skeleton, node).predicted(
+        prediction,
+        voxels[parent.index()],
+        voxels[grand.index()],
+    )
 }
 
 /// Every node's voxel chosen one at a time, parents first

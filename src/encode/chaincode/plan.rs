@@ -49,11 +49,52 @@ const MAX_CENTRE: i64 = 3;
 
 /// Which correction streams an internode writes to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Kind {
-    /// The first internode of a branch, coded in full from its fork.
+pub(super) enum Kind {
+    /// The first internode of a branch (the root's children included),
+    /// coded in full from its fork.
     BranchFirst = 0,
     /// A main extension, coded as a correction of its prediction.
     Continuation = 1,
+}
+
+impl Kind {
+    /// The kind of `node`'s internode (`node` is not the root).
+    pub(super) fn of(skeleton: &Skeleton, node: NodeId) -> Self {
+        match skeleton.parent(node) {
+            Some(parent)
+                if skeleton.parent(parent).is_some() && skeleton.children(parent)[0] == node =>
+            {
+                Kind::Continuation
+            }
+            _ => Kind::BranchFirst,
+        }
+    }
+
+    /// The voxel an internode of this kind is coded from, given its
+    /// parent's and its grandparent's voxels. Differential prediction: a
+    /// main extension repeats (a share of) the previous internode's step;
+    /// a branch's first internode is coded in full, from its fork's voxel.
+    /// Voxels stay within ±2^28 and a predicted step within its previous
+    /// step, so the sum stays within `i32`.
+    #[inline]
+    pub(super) fn predicted(
+        self,
+        prediction: Prediction,
+        parent: [i32; 3],
+        grand: [i32; 3],
+    ) -> [i32; 3] {
+        match self {
+            Kind::BranchFirst => parent,
+            Kind::Continuation => {
+                let step = prediction.step(sub(parent, grand));
+                [
+                    parent[0] + step[0],
+                    parent[1] + step[1],
+                    parent[2] + step[2],
+                ]
+            }
+        }
+    }
 }
 
 /// Estimated bits of a correction: per kind and axis, `λ` bits per unit of
@@ -120,15 +161,7 @@ impl<'a> TreeView<'a> {
     fn new(skeleton: &'a Skeleton, prediction: Prediction) -> Self {
         let kinds = skeleton
             .ids()
-            .map(|node| match skeleton.parent(node) {
-                Some(parent)
-                    if skeleton.parent(parent).is_some()
-                        && skeleton.children(parent)[0] == node =>
-                {
-                    Kind::Continuation
-                }
-                _ => Kind::BranchFirst,
-            })
+            .map(|node| Kind::of(skeleton, node))
             .collect();
         Self {
             skeleton,
@@ -137,21 +170,10 @@ impl<'a> TreeView<'a> {
         }
     }
 
-    /// The voxel `node`'s correction is taken from, given its parent's and
-    /// its grandparent's voxels: the rule of the encoder's loop.
+    /// The voxel `node`'s correction is taken from ([`Kind::predicted`]).
     #[inline]
     fn predicted(&self, node: NodeId, parent: [i32; 3], grand: [i32; 3]) -> [i32; 3] {
-        match self.kinds[node.index()] {
-            Kind::BranchFirst => parent,
-            Kind::Continuation => {
-                let step = self.prediction.step(sub(parent, grand));
-                [
-                    parent[0] + step[0],
-                    parent[1] + step[1],
-                    parent[2] + step[2],
-                ]
-            }
-        }
+        self.kinds[node.index()].predicted(self.prediction, parent, grand)
     }
 
     /// `node`'s kind and correction under `voxels` (`node` is not the root).
