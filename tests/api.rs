@@ -792,30 +792,20 @@ async fn probes_metrics_and_docs() {
 
 /// A client that stops reading its downloads loses its connection after
 /// one request time limit (1 s here) instead of holding it for ever. It
-/// asks for the 1.45 MB Swagger bundle eight times on one connection
-/// (pipelined, more than the kernel buffers on both sides hold), stalls for
-/// 3 s, and then reads what was sent and the end of the stream, short of
-/// the eight copies. A server without the stall limit sends them all once
-/// the client reads again.
+/// asks for the 1.45 MB Swagger bundle 32 times on one connection
+/// (pipelined, far more than the kernel buffers on both sides hold; 8 were
+/// enough here), stalls for 3 s, and then reads what was sent and the end
+/// of the stream, short of the copies. A server without the stall limit
+/// sends them all once the client reads again.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_that_stops_reading_loses_its_connection() {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    const COPIES: usize = 8;
+    use tokio::io::AsyncReadExt;
+    const COPIES: usize = 32;
     let db = common::TestDb::sqlite();
     let mut cfg = config(&db.url());
     cfg.request_timeout_secs = 1;
     let srv = TestServer::start(cfg).await;
-    let addr = srv.server.local_addr();
-    let path = "/docs/swagger-ui-bundle.js";
-    let body = srv.get(path).await.bytes().await.unwrap().len();
-    assert!(body > 1_000_000, "{body} bytes");
-    let socket = tokio::net::TcpSocket::new_v4().unwrap();
-    socket.set_recv_buffer_size(4096).unwrap();
-    let mut tcp = socket.connect(addr).await.unwrap();
-    let get = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
-    let last = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
-    let requests = get.repeat(COPIES - 1) + &last;
-    tcp.write_all(requests.as_bytes()).await.unwrap();
+    let (body, mut tcp) = pipelined_bundles(&srv, COPIES, Some(4096)).await;
     tokio::time::sleep(Duration::from_secs(3)).await;
     let mut got = Vec::new();
     tokio::time::timeout(Duration::from_secs(20), tcp.read_to_end(&mut got))
@@ -831,6 +821,63 @@ async fn a_client_that_stops_reading_loses_its_connection() {
     );
     srv.stop().await;
     db.drop_db().await;
+}
+
+/// A client that reads slowly but steadily keeps its connection: 64 KiB
+/// every 100 ms (640 KB/s) under a 1 s limit, for three pipelined copies
+/// of the 1.45 MB Swagger bundle. Without `TCP_NOTSENT_LOWAT` the kernel
+/// reported room only after about a third of its send buffer (megabytes)
+/// had drained, and this client was cut off.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_slow_client_that_keeps_reading_gets_everything() {
+    use tokio::io::AsyncReadExt;
+    const COPIES: usize = 3;
+    let db = common::TestDb::sqlite();
+    let mut cfg = config(&db.url());
+    cfg.request_timeout_secs = 1;
+    let srv = TestServer::start(cfg).await;
+    let (body, mut tcp) = pipelined_bundles(&srv, COPIES, None).await;
+    let mut got = 0;
+    let mut buf = vec![0; 64 * 1024];
+    loop {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        match tcp.read(&mut buf).await.expect("a connection kept open") {
+            0 => break,
+            n => got += n,
+        }
+    }
+    assert!(
+        got > COPIES * body,
+        "read {got} bytes of {COPIES} copies of {body}"
+    );
+    srv.stop().await;
+    db.drop_db().await;
+}
+
+/// Asks for the Swagger bundle `copies` times on one connection
+/// (pipelined; the last request closes it), with a receive buffer of
+/// `recv_buffer` bytes if given, and returns the bundle's size and the
+/// connection.
+async fn pipelined_bundles(
+    srv: &TestServer,
+    copies: usize,
+    recv_buffer: Option<u32>,
+) -> (usize, tokio::net::TcpStream) {
+    use tokio::io::AsyncWriteExt;
+    let addr = srv.server.local_addr();
+    let path = "/docs/swagger-ui-bundle.js";
+    let body = srv.get(path).await.bytes().await.unwrap().len();
+    assert!(body > 1_000_000, "{body} bytes");
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    if let Some(size) = recv_buffer {
+        socket.set_recv_buffer_size(size).unwrap();
+    }
+    let mut tcp = socket.connect(addr).await.unwrap();
+    let get = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+    let last = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    let requests = get.repeat(copies - 1) + &last;
+    tcp.write_all(requests.as_bytes()).await.unwrap();
+    (body, tcp)
 }
 
 /// Sends a chunked upload of `chunks` chunks of `size` digits over a raw

@@ -412,6 +412,20 @@ fn planned_voxels_code_shorter_than_greedy_ones() {
     // 0.4 % on these random skeletons; 1.5-2.5 % on reconstructed ones
     // (docs/chaincode.md §9).
     assert!(planned < greedy, "planned {planned} B, greedy {greedy} B");
+    // Small skeletons, where the structure stream weighs most.
+    for seed in 0..50 {
+        for nodes in [5, 20, 60, 200] {
+            let s = random_skeleton(seed, nodes);
+            let (p, g) = (
+                size(&s, Voxelisation::Optimised),
+                size(&s, Voxelisation::Predictive),
+            );
+            assert!(
+                p <= g,
+                "seed {seed}, {nodes} nodes: planned {p} B, greedy {g} B"
+            );
+        }
+    }
     let tree = botanical_tree(1, 1500);
     let (p, g) = (
         size(&tree, Voxelisation::Optimised),

@@ -234,7 +234,7 @@ fn worker_config(config: &Config, workers: usize) -> WorkerConfig {
 
 /// Serves `app` on `listener` until `stop` turns true.
 fn serve_http(
-    listener: stall::StallLimited<tokio::net::TcpListener>,
+    listener: stall::StallLimited,
     app: Router,
     mut stop: watch::Receiver<bool>,
 ) -> JoinHandle<std::io::Result<()>> {

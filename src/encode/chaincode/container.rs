@@ -250,6 +250,14 @@ impl ChainCode {
         })
     }
 
+    /// Bits of the parts of kind 3 that the voxel choice changes: the
+    /// header (its symbol count) and the correction streams. The structure
+    /// streams and the radii depend on the skeleton alone.
+    pub(crate) fn voxel_dependent_bits(&self) -> Option<u64> {
+        let header = self.header_bytes(KIND_SPLIT_3).len() as u64 * 8;
+        Some(header + split::correction_bits(self)?)
+    }
+
     fn header_bytes(&self, kind: u8) -> Vec<u8> {
         let h = &self.header;
         let damped = h.prediction != Prediction::DIFFERENTIAL;

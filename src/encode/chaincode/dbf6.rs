@@ -51,11 +51,11 @@ const MOVES: [[i32; 3]; 6] = [
 ///
 /// With `opts.prediction` unset, encodes with every [`Prediction`] weight
 /// and keeps the code whose corrections compress shortest (kind 3's
-/// correction streams, the only part the prediction and the voxel choice
-/// change; the paper's differential prediction on a tie). With
-/// [`Voxelisation::Optimised`], the voxels of the best of those are then
-/// planned for the whole tree (`plan.rs`), and the planned code is kept
-/// where its corrections compress shorter.
+/// correction streams, the only part the prediction changes; the paper's
+/// differential prediction on a tie). With [`Voxelisation::Optimised`],
+/// the voxels of the best of those are then planned for the whole tree
+/// (`plan.rs`), and the planned code is kept where its whole compressed
+/// stream is shorter.
 ///
 /// The result holds at most `Limits::default()` symbols and nodes, so that
 /// every code this function produces can be read back with default limits.
@@ -75,23 +75,42 @@ pub fn encode(skeleton: &Skeleton, opts: &ChainOptions) -> Result<ChainCode, Cha
         let voxels = greedy_voxels(skeleton, &frame, prediction, greedy);
         best.offer(emit(skeleton, &frame, prediction, &voxels), voxels);
     }
-    if opts.voxelisation == Voxelisation::Optimised {
-        for _ in 0..PLAN_ROUNDS {
-            let Some((code, start)) = best.code_and_voxels() else {
-                break;
-            };
-            let prediction = code.header.prediction;
-            let voxels = plan::plan(skeleton, &frame.targets, &frame.order, prediction, start);
-            best.offer(emit(skeleton, &frame, prediction, &voxels), voxels);
-        }
+    let plan_it = opts.voxelisation == Voxelisation::Optimised && skeleton.len() <= PLAN_MAX_NODES;
+    let Some((greedy_code, start)) = best.code_and_voxels().filter(|_| plan_it) else {
+        return best.into_result();
+    };
+    // One round: a second, from the planned code, saved at most one byte
+    // per tree on the four real clouds at r = 3, 5 and 10
+    // (`examples/voxel_choice.rs`) and took as long as the first.
+    let prediction = greedy_code.header.prediction;
+    let voxels = plan::plan(skeleton, &frame.targets, &frame.order, prediction, start);
+    match emit(skeleton, &frame, prediction, &voxels) {
+        Ok(planned) if shorter(&planned, greedy_code) => Ok(planned),
+        _ => best.into_result(),
     }
-    best.into_result()
 }
 
-/// Rounds of [`plan::plan`], each from the best code so far. A second round
-/// saved at most one byte per tree on the four real clouds at r = 3, 5 and
-/// 10 (`examples/voxel_choice.rs`) and took as long as the first.
-const PLAN_ROUNDS: usize = 1;
+/// Whether `planned` compresses shorter than `greedy`. Small skeletons
+/// compare whole compressed streams: there the single-string form (kind 1)
+/// can win, and fewer correction bits once made it a byte longer. Larger
+/// ones compare the parts of kind 3 the voxels change, which costs no
+/// compression (two would add 4–5 ms to a tree of 2,000 internodes).
+fn shorter(planned: &ChainCode, greedy: &ChainCode) -> bool {
+    if planned.radii_q.len() <= EXACT_MAX_NODES {
+        return planned.compress().len() < greedy.compress().len();
+    }
+    let bits = |code: &ChainCode| code.voxel_dependent_bits().unwrap_or(u64::MAX);
+    bits(planned) < bits(greedy)
+}
+
+/// Largest skeleton whose planned code is compared with its greedy one by
+/// whole compressed length.
+const EXACT_MAX_NODES: usize = 1024;
+
+/// Largest skeleton whose voxels are planned; larger ones keep the greedy
+/// choice. The plan's tables take at most 8 candidates of 12 bytes, 64
+/// costs of 4 bytes and two 4-byte offsets per node: under 400 MB here.
+const PLAN_MAX_NODES: usize = 1 << 20;
 
 /// The code whose corrections compress shortest among those offered, and
 /// the first error if none could be made.

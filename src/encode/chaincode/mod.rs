@@ -153,6 +153,7 @@ pub enum Voxelisation {
     /// `plan.rs`), kept where it compresses shorter than the greedy
     /// choice. 1.5–2.5 % smaller on reconstructed skeletons
     /// (`docs/chaincode.md` §9), for a few more milliseconds of encoding.
+    /// Skeletons of more than 2^20 nodes keep the greedy choice.
     Optimised,
 }
 

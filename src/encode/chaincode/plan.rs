@@ -187,8 +187,8 @@ impl<'a> TreeView<'a> {
         (self.kinds[node.index()], sub(voxels[node.index()], from))
     }
 
-    /// Cost of `node` taking candidate `ic` given its parent's voxel and
-    /// its grandparent's, plus the least cost below it given that its
+    /// Cost of `node` taking candidate `ic` when its correction is taken
+    /// from voxel `from`, plus the least cost below it given that its
     /// parent took candidate `ip`.
     #[inline]
     fn step_cost(
@@ -197,11 +197,9 @@ impl<'a> TreeView<'a> {
         node: NodeId,
         ip: usize,
         ic: usize,
-        parent: [i32; 3],
-        grand: [i32; 3],
+        from: [i32; 3],
     ) -> f32 {
         let cands = program.cands(node);
-        let from = self.predicted(node, parent, grand);
         program
             .model
             .cost(self.kinds[node.index()], sub(cands[ic], from)) as f32
@@ -214,13 +212,13 @@ struct Program<'m> {
     model: &'m CostModel,
     /// Node `i`'s candidate voxels are `cands[cand_at[i]..cand_at[i + 1]]`
     /// (the root's: the origin only).
-    cand_at: Vec<usize>,
+    cand_at: Vec<u32>,
     cands: Vec<[i32; 3]>,
     /// Node `n`'s table is `best[best_at[i]..best_at[i + 1]]`; its entry
     /// `ip·|C(n)| + in` is the least cost below `n` given its parent's
     /// candidate `ip` and its own `in`. Costs are in bits; `f32` keeps
-    /// a fraction of a bit up to trees of millions of internodes.
-    best_at: Vec<usize>,
+    /// a fraction of a bit, as each table is stored less its minimum.
+    best_at: Vec<u32>,
     best: Vec<f32>,
 }
 
@@ -228,22 +226,24 @@ impl<'m> Program<'m> {
     fn new(skeleton: &Skeleton, targets: &[DVec3], model: &'m CostModel) -> Self {
         let mut cand_at = Vec::with_capacity(skeleton.len() + 1);
         let mut cands = Vec::with_capacity(skeleton.len() * 3);
+        // At most 8 candidates and 64 table entries per node: within `u32`
+        // for the encoder's 2^22 nodes.
         for n in skeleton.ids() {
-            cand_at.push(cands.len());
+            cand_at.push(cands.len() as u32);
             match n {
                 NodeId::ROOT => cands.push([0; 3]),
                 _ => push_candidates(&mut cands, targets[n.index()]),
             }
         }
-        cand_at.push(cands.len());
-        let count = |i: usize| cand_at[i + 1] - cand_at[i];
+        cand_at.push(cands.len() as u32);
+        let count = |i: usize| (cand_at[i + 1] - cand_at[i]) as usize;
         let mut best_at = Vec::with_capacity(skeleton.len() + 1);
         let mut len = 0;
         for n in skeleton.ids() {
-            best_at.push(len);
+            best_at.push(len as u32);
             len += skeleton.parent(n).map_or(1, |p| count(p.index())) * count(n.index());
         }
-        best_at.push(len);
+        best_at.push(len as u32);
         Self {
             model,
             cand_at,
@@ -254,11 +254,11 @@ impl<'m> Program<'m> {
     }
 
     fn cands(&self, n: NodeId) -> &[[i32; 3]] {
-        &self.cands[self.cand_at[n.index()]..self.cand_at[n.index() + 1]]
+        &self.cands[self.cand_at[n.index()] as usize..self.cand_at[n.index() + 1] as usize]
     }
 
     fn best(&self, n: NodeId) -> &[f32] {
-        &self.best[self.best_at[n.index()]..self.best_at[n.index() + 1]]
+        &self.best[self.best_at[n.index()] as usize..self.best_at[n.index() + 1] as usize]
     }
 }
 
@@ -300,7 +300,10 @@ pub(super) fn plan(
     let mut table = Vec::new();
     for &n in order.iter().rev() {
         least_below(&tree, &program, n, &mut table);
-        let at = program.best_at[n.index()];
+        // Less its minimum: the same choices, and small values in `f32`.
+        let least = table.iter().copied().fold(f32::INFINITY, f32::min);
+        table.iter_mut().for_each(|cost| *cost -= least);
+        let at = program.best_at[n.index()] as usize;
         program.best[at..at + table.len()].copy_from_slice(&table);
     }
     read_back(&tree, &program, order)
@@ -320,8 +323,9 @@ fn least_below(tree: &TreeView<'_>, program: &Program<'_>, n: NodeId, table: &mu
         let n_c = program.cands(c).len();
         for (in_, &v_n) in own.iter().enumerate() {
             let least = |v_p: [i32; 3]| {
+                let from = tree.predicted(c, v_n, v_p);
                 (0..n_c)
-                    .map(|ic| tree.step_cost(program, c, in_, ic, v_n, v_p))
+                    .map(|ic| tree.step_cost(program, c, in_, ic, from))
                     .fold(f32::INFINITY, f32::min)
             };
             match tree.kinds[c.index()] {
@@ -356,8 +360,9 @@ fn read_back(tree: &TreeView<'_>, program: &Program<'_>, order: &[NodeId]) -> Ve
             voxels[grand.index()],
         );
         let cands = program.cands(c);
+        let from = tree.predicted(c, v_n, v_p);
         let ic = (0..cands.len())
-            .map(|ic| (tree.step_cost(program, c, in_, ic, v_n, v_p), ic))
+            .map(|ic| (tree.step_cost(program, c, in_, ic, from), ic))
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
             .map_or(0, |(_, ic)| ic);
         // At most 8 candidates (two per axis).
