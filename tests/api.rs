@@ -250,6 +250,75 @@ async fn a_waiting_upload_that_queued_for_its_slot_answers_before_the_time_limit
     .await;
 }
 
+/// An upload whose store is held up past the time limit reports the
+/// store's outcome. Another connection holds the database's write lock for
+/// 1.5 s under a 1 s limit; the upload must answer 202 with its scan
+/// stored, after the lock is let go (held 2.5 s, past the second limit,
+/// it answers the 503 that says the write may have been made). Before (tower-http's timeout), the
+/// limit dropped it at 1 s with a 503, whether or not its commit had gone
+/// through.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_upload_held_up_while_storing_reports_the_outcome_past_the_time_limit() {
+    let scan = synthetic_scan(ORIGIN, 16);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            cfg.request_timeout_secs = 1;
+            let srv = TestServer::start(cfg).await;
+            let hold = Duration::from_millis(1500);
+            let lock = hold_write_lock(&url, hold).await;
+            let started = std::time::Instant::now();
+            let res = srv.upload("external_id=held-up", &scan).await;
+            let (status, waited) = (res.status(), started.elapsed());
+            let body = res.text().await.unwrap();
+            assert_eq!(status, 202, "{body}");
+            assert!(
+                waited >= Duration::from_millis(1200),
+                "not held up: {waited:?}"
+            );
+            lock.await.unwrap();
+            let trees: Value = srv
+                .get("/v1/collections/trees/items")
+                .await
+                .json()
+                .await
+                .unwrap();
+            assert_eq!(trees["features"].as_array().unwrap().len(), 1, "{trees}");
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+/// Takes the write lock of the database at `url` (PostgreSQL: the `trees`
+/// table, which an upload inserts into; SQLite: the whole file) and lets it
+/// go `hold` later, in the returned task.
+async fn hold_write_lock(url: &str, hold: Duration) -> tokio::task::JoinHandle<()> {
+    use sqlx::{Connection, Executor};
+    macro_rules! hold_with {
+        ($conn:ty, $begin:expr) => {{
+            let mut conn = <$conn>::connect(url).await.expect("lock connection");
+            for sql in $begin {
+                conn.execute(sql).await.expect("take the lock");
+            }
+            tokio::spawn(async move {
+                tokio::time::sleep(hold).await;
+                conn.execute("COMMIT").await.expect("let go of the lock");
+            })
+        }};
+    }
+    if url.starts_with("postgres") {
+        hold_with!(
+            sqlx::PgConnection,
+            ["BEGIN", "LOCK TABLE trees IN EXCLUSIVE MODE"]
+        )
+    } else {
+        hold_with!(sqlx::SqliteConnection, ["BEGIN IMMEDIATE"])
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn write_routes_need_a_key() {
     let scan = synthetic_scan(ORIGIN, 9);

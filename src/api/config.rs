@@ -52,8 +52,10 @@ pub struct Config {
     pub max_points: usize,
     /// Time limit of one request, in seconds, 1 to 86400 (a longer one is
     /// taken as a day; uploads with `?wait=true` answer 202 instead when the
-    /// job is not finished by then). A connection whose client takes less
-    /// than 128 KiB of a response in this time is closed.
+    /// job is not finished by then). A request that is storing at its limit
+    /// (an upload, a delete, a retry) gets one more limit to report the
+    /// outcome. A connection whose client takes less than 128 KiB of a
+    /// response in this time is closed.
     #[arg(long, env = "SILVA_REQUEST_TIMEOUT_SECS", default_value_t = DEFAULT_TIMEOUT_SECS)]
     pub request_timeout_secs: u64,
     /// Requests handled at once, 1 to 1,048,576 (a larger one is taken as

@@ -10,6 +10,7 @@ use uuid::Uuid;
 
 use super::error::Problem;
 use super::extract::ApiPath;
+use super::middleware::RequestClock;
 use super::schema::Job;
 use super::{ApiError, AppState, BaseUrl, ReadAccess, WriteAccess};
 use crate::store::JobState;
@@ -63,8 +64,10 @@ pub(super) async fn retry_job(
     State(state): State<Arc<AppState>>,
     _: WriteAccess,
     BaseUrl(base): BaseUrl,
+    clock: RequestClock,
     ApiPath(id): ApiPath<Uuid>,
 ) -> Result<Json<Job>, ApiError> {
+    clock.begin_storing();
     let job = state
         .store
         .retry_job(id)

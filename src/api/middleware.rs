@@ -2,10 +2,12 @@
 //! ETags weakened under compression.
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use axum::body::Body;
-use axum::extract::{MatchedPath, Request, State};
+use axum::extract::{FromRequestParts, MatchedPath, Request, State};
+use axum::http::request::Parts;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
@@ -108,16 +110,99 @@ pub(crate) async fn weaken_etag_when_encoded(req: Request, next: Next) -> Respon
     res
 }
 
-/// When a request reached the service, before it waited for a slot under
-/// the concurrency limit: the request time limit runs from then, so a
-/// handler that spends what is left of it must count from then too.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Arrival(pub(crate) Instant);
+/// A request's standing under its time limit ([`time_limit`]), which
+/// handlers extract: when it arrived, and whether it has begun to store.
+///
+/// The arrival is taken before the request waited for a slot under the
+/// concurrency limit: the time limit runs from then, so a handler that
+/// spends what is left of it must count from then too.
+///
+/// Once a handler has begun to store something ([`RequestClock::begin_storing`]),
+/// [`time_limit`] gives the request up to one more limit to report the
+/// outcome instead of answering 503 at the first. Without it, a store that
+/// committed while the limit passed (a slow commit, a database lock held
+/// past the limit) answered 503 for an upload that was stored, and a client
+/// that retried stored it twice.
+#[derive(Debug, Clone)]
+pub(crate) struct RequestClock {
+    arrival: Instant,
+    storing: Arc<AtomicBool>,
+}
 
-/// Stamps each request with its [`Arrival`].
-pub(crate) async fn stamp_arrival(mut req: Request, next: Next) -> Response {
-    req.extensions_mut().insert(Arrival(Instant::now()));
-    next.run(req).await
+impl RequestClock {
+    fn start() -> Self {
+        Self {
+            arrival: Instant::now(),
+            storing: Arc::default(),
+        }
+    }
+
+    /// When the request reached the service.
+    pub(crate) fn arrival(&self) -> Instant {
+        self.arrival
+    }
+
+    /// Marks the request as storing: call it just before the write.
+    pub(crate) fn begin_storing(&self) {
+        self.storing.store(true, Ordering::Release);
+    }
+
+    fn is_storing(&self) -> bool {
+        self.storing.load(Ordering::Acquire)
+    }
+}
+
+impl<S: Send + Sync> FromRequestParts<S> for RequestClock {
+    type Rejection = std::convert::Infallible;
+
+    /// The request's clock; one started now (that [`time_limit`] does not
+    /// read) when the request did not pass [`time_limit`].
+    async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Self::Rejection> {
+        Ok(parts
+            .extensions
+            .get::<Self>()
+            .cloned()
+            .unwrap_or_else(Self::start))
+    }
+}
+
+/// The request time limit, counted from arrival (before the wait for a
+/// slot under the concurrency limit): past it a request is dropped and
+/// answered 503, unless its handler has begun to store ([`RequestClock`]).
+/// A committed request gets one more limit to answer, after which it is
+/// dropped as well and the 503 says the write may have happened.
+///
+/// As with tower-http's `TimeoutLayer`, which this replaces, the limit
+/// covers the handler up to its response head; a streamed body is bounded
+/// by the stalled-connection limit (`api::stall`) and its own rules.
+pub(crate) async fn time_limit(
+    State(limit): State<Duration>,
+    mut req: Request,
+    next: Next,
+) -> Response {
+    let clock = RequestClock::start();
+    req.extensions_mut().insert(clock.clone());
+    let handler = next.run(req);
+    tokio::pin!(handler);
+    if let Ok(res) = tokio::time::timeout(limit, &mut handler).await {
+        return res;
+    }
+    if !clock.is_storing() {
+        return StatusCode::SERVICE_UNAVAILABLE.into_response();
+    }
+    tracing::warn!(
+        limit_s = limit.as_secs_f64(),
+        "a request was still storing at its time limit: waiting up to one more limit for the outcome"
+    );
+    match tokio::time::timeout(limit, handler).await {
+        Ok(res) => res,
+        Err(_) => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the request was storing when twice its time limit passed: the write may have been \
+             made; look the tree up (by its external_id) before sending it again",
+        )
+            .into_response(),
+    }
 }
 
 /// Records the latency of each request under its route template.
@@ -142,4 +227,68 @@ pub(crate) async fn record_metrics(
 /// The answer for routes that do not exist.
 pub(crate) async fn not_found() -> Response {
     StatusCode::NOT_FOUND.into_response()
+}
+
+#[cfg(test)]
+mod tests {
+    use axum::Router;
+    use axum::routing::get;
+    use tower::ServiceExt;
+
+    use super::*;
+
+    const LIMIT: Duration = Duration::from_secs(10);
+
+    /// A route that waits `sleep`, having first begun a write when `commits`.
+    fn app(sleep: Duration, commits: bool) -> Router {
+        let handler = move |clock: RequestClock| async move {
+            if commits {
+                clock.begin_storing();
+            }
+            tokio::time::sleep(sleep).await;
+            "stored"
+        };
+        Router::new()
+            .route("/", get(handler))
+            .layer(axum::middleware::from_fn_with_state(LIMIT, time_limit))
+    }
+
+    async fn answer(app: Router) -> (StatusCode, String) {
+        let req = Request::builder().uri("/").body(Body::empty()).unwrap();
+        let res = app.oneshot(req).await.unwrap();
+        let status = res.status();
+        let body = axum::body::to_bytes(res.into_body(), 1 << 16)
+            .await
+            .unwrap();
+        (status, String::from_utf8_lossy(&body).into_owned())
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_request_within_its_limit_is_answered() {
+        assert_eq!(answer(app(LIMIT / 2, false)).await.0, StatusCode::OK);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_request_past_its_limit_is_a_503_when_it_stored_nothing() {
+        let started = tokio::time::Instant::now();
+        let (status, body) = answer(app(LIMIT * 3 / 2, false)).await;
+        assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(body, "");
+        assert_eq!(started.elapsed(), LIMIT);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_request_storing_at_its_limit_reports_the_outcome() {
+        let (status, body) = answer(app(LIMIT * 3 / 2, true)).await;
+        assert_eq!((status, body.as_str()), (StatusCode::OK, "stored"));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_request_storing_past_twice_its_limit_is_a_503_that_says_so() {
+        let started = tokio::time::Instant::now();
+        let (status, body) = answer(app(LIMIT * 3, true)).await;
+        assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE);
+        assert!(body.contains("may have been made"), "{body}");
+        assert_eq!(started.elapsed(), LIMIT * 2);
+    }
 }

@@ -6,7 +6,7 @@
 //! middleware:
 //!
 //! trace → ETag weakening → compression (gzip, br) → problem+json for every
-//! error → catch-panic → timeout → concurrency limit → routes (metrics, auth
+//! error → catch-panic → time limit → concurrency limit → routes (metrics, auth
 //! and body limits per route).
 //!
 //! Each resource has its own file with its handlers and their OpenAPI
@@ -19,15 +19,14 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::extract::FromRequestParts;
+use axum::http::header;
 use axum::http::request::Parts;
-use axum::http::{StatusCode, header};
 use tokio::sync::{Semaphore, watch};
 use tokio::task::JoinHandle;
 use tower::limit::GlobalConcurrencyLimitLayer;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::compression::predicate::{NotForContentType, Predicate};
 use tower_http::compression::{CompressionLayer, DefaultPredicate};
-use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 use utoipa::OpenApi;
 use utoipa::openapi::security::{Http, HttpAuthScheme, SecurityScheme};
@@ -270,12 +269,11 @@ pub fn router(state: Arc<AppState>) -> Router {
         ))
         .merge(utoipa_swagger_ui::SwaggerUi::new("/docs").url("/openapi.json", ApiDoc::openapi()))
         .layer(GlobalConcurrencyLimitLayer::new(config.concurrency_limit()))
-        // Outside the concurrency limit, inside the time limit: the time a
-        // request waits for its slot counts against its time limit.
-        .layer(axum::middleware::from_fn(middleware::stamp_arrival))
-        .layer(TimeoutLayer::with_status_code(
-            StatusCode::SERVICE_UNAVAILABLE,
+        // Outside the concurrency limit: the time a request waits for its
+        // slot counts against its time limit.
+        .layer(axum::middleware::from_fn_with_state(
             config.request_timeout(),
+            middleware::time_limit,
         ))
         .layer(CatchPanicLayer::new())
         .layer(axum::middleware::from_fn(middleware::problem_details))

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use axum::Router;
 use axum::extract::rejection::{BytesRejection, FailedToBufferBody};
-use axum::extract::{DefaultBodyLimit, Extension, FromRequest, Request, State};
+use axum::extract::{DefaultBodyLimit, FromRequest, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -20,7 +20,7 @@ use uuid::Uuid;
 use super::downloads::not_modified;
 use super::error::Problem;
 use super::extract::{ApiPath, ApiQuery, RawUpload};
-use super::middleware::Arrival;
+use super::middleware::RequestClock;
 use super::schema::{Binary, Job, Tree};
 use super::{ApiError, AppState, BaseUrl, Config, ReadAccess, WriteAccess};
 use crate::jobs::JobOptions;
@@ -108,10 +108,9 @@ pub(super) async fn create_tree(
     BaseUrl(base): BaseUrl,
     ApiQuery(query): ApiQuery<IngestQuery>,
     _: RawUpload,
-    arrival: Option<Extension<Arrival>>,
+    clock: RequestClock,
     request: Request,
 ) -> Result<Response, ApiError> {
-    let arrival = arrival.map_or_else(Instant::now, |Extension(Arrival(at))| at);
     let memory = reserve_upload_memory(&state, request.headers()).await?;
     let body = Bytes::from_request(request, &()).await;
     let body = body.map_err(|rejection| match rejection {
@@ -129,6 +128,7 @@ pub(super) async fn create_tree(
         crs: query.crs.clone(),
     };
     let (decoded, memory) = decode_upload(&state, body, memory).await?;
+    clock.begin_storing();
     let ingested = state
         .store
         .ingest(&NewIngest {
@@ -149,7 +149,7 @@ pub(super) async fn create_tree(
     tracing::info!(tree = %ingested.tree_id, job = %ingested.job_id, points = decoded.point_count, "scan stored");
 
     if query.wait {
-        let budget = wait_budget(state.config.request_timeout(), arrival.elapsed());
+        let budget = wait_budget(state.config.request_timeout(), clock.arrival().elapsed());
         let job = wait_for_job(&state, ingested.job_id, budget).await?;
         if job.state().is_terminal() {
             return finished_upload(&state, &base, &job).await;
@@ -378,8 +378,10 @@ pub(super) async fn get_tree(
 pub(super) async fn delete_tree(
     State(state): State<Arc<AppState>>,
     _: WriteAccess,
+    clock: RequestClock,
     ApiPath(id): ApiPath<Uuid>,
 ) -> Result<StatusCode, ApiError> {
+    clock.begin_storing();
     if state.store.delete_tree(id).await? {
         Ok(StatusCode::NO_CONTENT)
     } else {
