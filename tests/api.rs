@@ -892,6 +892,30 @@ async fn a_client_that_stops_reading_loses_its_connection() {
     db.drop_db().await;
 }
 
+/// A client that stops reading does not hold up a graceful shutdown for
+/// its grace period (10 s in `TestServer::stop`): the stall limit (1 s
+/// here) closes its connection, and the server stops within a few
+/// seconds. Without the stall limit the shutdown waited out its grace.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_stops_reading_does_not_hold_up_shutdown() {
+    use tokio::io::AsyncReadExt;
+    let db = common::TestDb::sqlite();
+    let mut cfg = config(&db.url());
+    cfg.request_timeout_secs = 1;
+    let srv = TestServer::start(cfg).await;
+    let (_, mut tcp) = pipelined_bundles(&srv, 32, Some(4096)).await;
+    // The first response has begun: the shutdown must wait for it.
+    let mut head = [0; 1024];
+    let n = tcp.read(&mut head).await.unwrap();
+    assert_eq!(http_status(&head[..n]), 200);
+    let started = std::time::Instant::now();
+    srv.stop().await;
+    let took = started.elapsed();
+    assert!(took < Duration::from_secs(6), "shutdown took {took:?}");
+    drop(tcp);
+    db.drop_db().await;
+}
+
 /// A client that reads slowly but steadily keeps its connection: 64 KiB
 /// every 100 ms (640 KB/s) under a 1 s limit, for three pipelined copies
 /// of the 1.45 MB Swagger bundle. Without `TCP_NOTSENT_LOWAT` the kernel
