@@ -57,6 +57,8 @@ pub(super) async fn get_job(
         (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such job", body = Problem, content_type = "application/problem+json"),
         (status = 409, description = "The job has not failed", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Past the request time limit before anything was written (nothing stored: safe to repeat), or still writing at twice the limit (the detail says the write may have been made)",
+            body = Problem, content_type = "application/problem+json"),
     ),
     security(("api_key" = []))
 )]

@@ -1,5 +1,5 @@
-//! Cross-cutting layers: problem+json for every error, request metrics,
-//! ETags weakened under compression.
+//! Cross-cutting layers: problem+json for every error, the request time
+//! limit, request metrics, ETags weakened under compression.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -158,11 +158,10 @@ impl<S: Send + Sync> FromRequestParts<S> for RequestClock {
     /// The request's clock; one started now (that [`time_limit`] does not
     /// read) when the request did not pass [`time_limit`].
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Self::Rejection> {
-        Ok(parts
-            .extensions
-            .get::<Self>()
-            .cloned()
-            .unwrap_or_else(Self::start))
+        Ok(parts.extensions.get::<Self>().cloned().unwrap_or_else(|| {
+            tracing::warn!("a request without the time limit layer: its writes are not marked");
+            Self::start()
+        }))
     }
 }
 
@@ -198,8 +197,8 @@ pub(crate) async fn time_limit(
         Ok(res) => res,
         Err(_) => (
             StatusCode::SERVICE_UNAVAILABLE,
-            "the request was storing when twice its time limit passed: the write may have been \
-             made; look the tree up (by its external_id) before sending it again",
+            "the request was still writing when twice its time limit passed: the write may \
+             have been made; check the resource's state before repeating the request",
         )
             .into_response(),
     }

@@ -99,6 +99,8 @@ pub(super) struct IngestQuery {
             body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Not a readable point cloud, or (with `wait=true`) no tree could be reconstructed from it",
             body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Past the request time limit before anything was written (nothing stored: safe to repeat), or still writing at twice the limit (the detail says the write may have been made)",
+            body = Problem, content_type = "application/problem+json"),
     ),
     security(("api_key" = []))
 )]
@@ -372,6 +374,8 @@ pub(super) async fn get_tree(
         (status = 204, description = "Deleted"),
         (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
         (status = 404, description = "No such tree", body = Problem, content_type = "application/problem+json"),
+        (status = 503, description = "Past the request time limit before anything was written (nothing stored: safe to repeat), or still writing at twice the limit (the detail says the write may have been made)",
+            body = Problem, content_type = "application/problem+json"),
     ),
     security(("api_key" = []))
 )]
