@@ -868,10 +868,7 @@ async fn probes_metrics_and_docs() {
 async fn a_client_that_stops_reading_loses_its_connection() {
     use tokio::io::AsyncReadExt;
     const COPIES: usize = 32;
-    let db = common::TestDb::sqlite();
-    let mut cfg = config(&db.url());
-    cfg.request_timeout_secs = 1;
-    let srv = TestServer::start(cfg).await;
+    let (db, srv) = one_second_server().await;
     let (body, mut tcp) = pipelined_bundles(&srv, COPIES, Some(4096)).await;
     tokio::time::sleep(Duration::from_secs(3)).await;
     let mut got = Vec::new();
@@ -897,10 +894,7 @@ async fn a_client_that_stops_reading_loses_its_connection() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_that_stops_reading_does_not_hold_up_shutdown() {
     use tokio::io::AsyncReadExt;
-    let db = common::TestDb::sqlite();
-    let mut cfg = config(&db.url());
-    cfg.request_timeout_secs = 1;
-    let srv = TestServer::start(cfg).await;
+    let (db, srv) = one_second_server().await;
     let (_, mut tcp) = pipelined_bundles(&srv, 32, Some(4096)).await;
     // The first response has begun: the shutdown must wait for it.
     let mut head = [0; 1024];
@@ -923,10 +917,7 @@ async fn a_client_that_stops_reading_does_not_hold_up_shutdown() {
 async fn a_slow_client_that_keeps_reading_gets_everything() {
     use tokio::io::AsyncReadExt;
     const COPIES: usize = 3;
-    let db = common::TestDb::sqlite();
-    let mut cfg = config(&db.url());
-    cfg.request_timeout_secs = 1;
-    let srv = TestServer::start(cfg).await;
+    let (db, srv) = one_second_server().await;
     let (body, mut tcp) = pipelined_bundles(&srv, COPIES, None).await;
     let mut got = 0;
     let mut buf = vec![0; 64 * 1024];
@@ -943,6 +934,15 @@ async fn a_slow_client_that_keeps_reading_gets_everything() {
     );
     srv.stop().await;
     db.drop_db().await;
+}
+
+/// A server on SQLite with a request time limit of 1 s, for the tests of
+/// clients that stop reading.
+async fn one_second_server() -> (common::TestDb, TestServer) {
+    let db = common::TestDb::sqlite();
+    let mut cfg = config(&db.url());
+    cfg.request_timeout_secs = 1;
+    (db, TestServer::start(cfg).await)
 }
 
 /// Asks for the Swagger bundle `copies` times on one connection
