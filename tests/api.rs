@@ -290,6 +290,60 @@ async fn tree_count(srv: &TestServer) -> usize {
     trees["features"].as_array().unwrap().len()
 }
 
+/// An upload sent again with the same `Idempotency-Key` is stored once: the
+/// repeat (plain, quoted as the draft writes keys, or two at once) answers
+/// with the first upload's job; the same key with another body is a 422;
+/// another key stores another tree; an empty key is a 400.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
+    let scan = synthetic_scan(ORIGIN, 17);
+    let other = synthetic_scan(ORIGIN, 18);
+    on_both(|url| {
+        let (scan, other) = (scan.clone(), other.clone());
+        async move {
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            let srv = TestServer::start(cfg).await;
+            let send = |body: &[u8], key: &str| {
+                srv.http
+                    .post(srv.url("/v1/trees?mode=dense&species=Betula"))
+                    .header("Idempotency-Key", key)
+                    .body(body.to_vec())
+                    .send()
+            };
+            let job_of = |res: reqwest::Response| async move {
+                assert_eq!(res.status(), 202);
+                let job: Value = res.json().await.unwrap();
+                job["id"].as_str().unwrap().to_owned()
+            };
+            let first = job_of(send(&scan, "etl-7/tree-1").await.unwrap()).await;
+            let again = job_of(send(&scan, "etl-7/tree-1").await.unwrap()).await;
+            let quoted = job_of(send(&scan, "\"etl-7/tree-1\"").await.unwrap()).await;
+            assert_eq!((&again, &quoted), (&first, &first));
+            assert_eq!(tree_count(&srv).await, 1);
+
+            let reused = send(&other, "etl-7/tree-1").await.unwrap();
+            let problem = assert_problem(reused, 422).await;
+            assert!(
+                problem["type"]
+                    .as_str()
+                    .unwrap()
+                    .ends_with("idempotency-key-reused"),
+                "{problem}"
+            );
+            let (a, b) = tokio::join!(send(&other, "etl-7/tree-2"), send(&other, "etl-7/tree-2"));
+            let (a, b) = (job_of(a.unwrap()).await, job_of(b.unwrap()).await);
+            assert_eq!(a, b);
+            assert_ne!(a, first);
+            assert_eq!(tree_count(&srv).await, 2);
+            assert_problem(send(&scan, "").await.unwrap(), 400).await;
+            assert_eq!(tree_count(&srv).await, 2);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
 /// Takes the write lock of the database at `url` (PostgreSQL: the `trees`
 /// table, which an upload inserts into; SQLite: the whole file) and lets it
 /// go `hold` later, in the returned task.

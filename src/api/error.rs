@@ -83,6 +83,9 @@ pub enum ApiError {
     /// The body is well-formed HTTP but not a usable point cloud.
     #[error("{0}")]
     Unprocessable(String),
+    /// An `Idempotency-Key` sent again with another upload.
+    #[error("{0}")]
+    IdempotencyKeyReused(String),
     /// The database cannot be reached.
     #[error("{0}")]
     Unavailable(String),
@@ -106,6 +109,9 @@ impl ApiError {
                 (StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported-media-type")
             }
             ApiError::Unprocessable(_) => (StatusCode::UNPROCESSABLE_ENTITY, "unprocessable-cloud"),
+            ApiError::IdempotencyKeyReused(_) => {
+                (StatusCode::UNPROCESSABLE_ENTITY, "idempotency-key-reused")
+            }
             ApiError::Unavailable(_) => (StatusCode::SERVICE_UNAVAILABLE, "unavailable"),
             ApiError::Internal(_) => (StatusCode::INTERNAL_SERVER_ERROR, "internal"),
         }

@@ -12,6 +12,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use bytes::Bytes;
 use serde::Deserialize;
+use sha2::{Digest, Sha256};
 use tokio::sync::OwnedSemaphorePermit;
 use tower_http::limit::RequestBodyLimitLayer;
 use utoipa::IntoParams;
@@ -25,7 +26,7 @@ use super::schema::{Binary, Job, Tree};
 use super::{ApiError, AppState, BaseUrl, Config, ReadAccess, WriteAccess};
 use crate::jobs::JobOptions;
 use crate::reconstruct::Mode;
-use crate::store::{JobRow, NewIngest};
+use crate::store::{Idempotency, Ingested, JobRow, NewIngest};
 
 pub(super) fn routes(config: &Config) -> Router<Arc<AppState>> {
     Router::new()
@@ -81,7 +82,14 @@ pub(super) struct IngestQuery {
     post,
     path = "/v1/trees",
     tag = "trees",
-    params(IngestQuery),
+    params(
+        IngestQuery,
+        ("Idempotency-Key" = Option<String>, Header, max_length = 256,
+            description = "Makes a retry safe: an upload sent again with the same key and the same \
+                           metadata and body is answered with the first upload's job (or tree) and \
+                           stores nothing new; the same key with another upload is a 422. A key \
+                           lives as long as its scan (draft-ietf-httpapi-idempotency-key-header)"),
+    ),
     request_body(
         content = Binary,
         description = "Point cloud bytes: XYZ, PLY, LAS or LAZ",
@@ -97,7 +105,7 @@ pub(super) struct IngestQuery {
         (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "The body is compressed (`Content-Encoding`) or a multipart form: send the file itself",
             body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "Not a readable point cloud, or (with `wait=true`) no tree could be reconstructed from it",
+        (status = 422, description = "Not a readable point cloud, (with `wait=true`) no tree could be reconstructed from it, or the `Idempotency-Key` was used for another upload",
             body = Problem, content_type = "application/problem+json"),
         (status = 503, description = "Past the request time limit before anything was written (nothing stored: safe to repeat), or still writing at twice the limit (the detail says the write may have been made)",
             body = Problem, content_type = "application/problem+json"),
@@ -113,6 +121,7 @@ pub(super) async fn create_tree(
     clock: RequestClock,
     request: Request,
 ) -> Result<Response, ApiError> {
+    let key = idempotency_key(request.headers())?;
     let memory = reserve_upload_memory(&state, request.headers()).await?;
     let body = Bytes::from_request(request, &()).await;
     let body = body.map_err(|rejection| match rejection {
@@ -125,36 +134,78 @@ pub(super) async fn create_tree(
     })?;
     check_acquired(query.acquired.as_deref())?;
     check_metadata_lengths(&query)?;
+    let idempotency = key.map(|key| Idempotency {
+        fingerprint: request_fingerprint(&query, &body),
+        key,
+    });
+    let wait = query.wait;
+    let ingested = match first_upload(&state, idempotency.as_ref()).await? {
+        Some(first) => first,
+        None => {
+            let (decoded, memory) = decode_upload(&state, body, memory).await?;
+            clock.begin_storing();
+            let stored = store_upload(&state, query, decoded, idempotency).await;
+            drop(memory);
+            stored?
+        }
+    };
+    answer_upload(&state, &base, &clock, wait, &ingested).await
+}
+
+/// Stores a decoded upload with its job, and wakes the workers; when
+/// another upload with the same idempotency key committed first, that
+/// upload instead.
+async fn store_upload(
+    state: &AppState,
+    query: IngestQuery,
+    decoded: crate::jobs::PreparedScan,
+    idempotency: Option<Idempotency>,
+) -> Result<Ingested, ApiError> {
     let options = JobOptions {
         mode: query.mode.unwrap_or_default(),
         crs: query.crs.clone(),
     };
-    let (decoded, memory) = decode_upload(&state, body, memory).await?;
-    clock.begin_storing();
-    let ingested = state
-        .store
-        .ingest(&NewIngest {
-            external_id: query.external_id,
-            species: query.species,
-            crs: query.crs,
-            acquired: query.acquired,
-            source: query.source,
-            format: decoded.format,
-            point_count: decoded.point_count,
-            cloud_laz: decoded.cloud_laz,
-            options: serde_json::to_string(&options)
-                .map_err(|e| ApiError::Internal(e.to_string()))?,
-        })
-        .await?;
-    drop(memory);
+    let new = NewIngest {
+        external_id: query.external_id,
+        species: query.species,
+        crs: query.crs,
+        acquired: query.acquired,
+        source: query.source,
+        format: decoded.format,
+        point_count: decoded.point_count,
+        cloud_laz: decoded.cloud_laz,
+        options: serde_json::to_string(&options).map_err(|e| ApiError::Internal(e.to_string()))?,
+        idempotency,
+    };
+    let ingested = match state.store.ingest(&new).await {
+        Ok(ingested) => ingested,
+        Err(e) if e.is_unique_violation() && new.idempotency.is_some() => {
+            return first_upload(state, new.idempotency.as_ref())
+                .await?
+                .ok_or_else(|| e.into());
+        }
+        Err(e) => return Err(e.into()),
+    };
     state.events.notify_enqueued();
     tracing::info!(tree = %ingested.tree_id, job = %ingested.job_id, points = decoded.point_count, "scan stored");
+    Ok(ingested)
+}
 
-    if query.wait {
+/// The answer to a stored upload (or to a repeat of one): with `wait`, the
+/// tree once its job has ended within the wait budget; otherwise, or past
+/// the budget, 202 with the job.
+async fn answer_upload(
+    state: &AppState,
+    base: &str,
+    clock: &RequestClock,
+    wait: bool,
+    ingested: &Ingested,
+) -> Result<Response, ApiError> {
+    if wait {
         let budget = wait_budget(state.config.request_timeout(), clock.arrival().elapsed());
-        let job = wait_for_job(&state, ingested.job_id, budget).await?;
+        let job = wait_for_job(state, ingested.job_id, budget).await?;
         if job.state().is_terminal() {
-            return finished_upload(&state, &base, &job).await;
+            return finished_upload(state, base, &job).await;
         }
     }
     let job = state
@@ -165,8 +216,81 @@ pub(super) async fn create_tree(
     Ok(with_location(
         StatusCode::ACCEPTED,
         format!("{base}/v1/jobs/{}", job.id),
-        axum::Json(Job::from_row(&job, &base)),
+        axum::Json(Job::from_row(&job, base)),
     ))
+}
+
+/// Longest `Idempotency-Key` accepted, in bytes.
+const MAX_IDEMPOTENCY_KEY_BYTES: usize = 256;
+
+/// The upload's `Idempotency-Key` header (draft-ietf-httpapi-idempotency-key-header):
+/// a token, or a quoted string as the draft writes it, of 1 to
+/// [`MAX_IDEMPOTENCY_KEY_BYTES`] visible ASCII bytes.
+fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
+    let Some(value) = headers.get(IDEMPOTENCY_KEY) else {
+        return Ok(None);
+    };
+    let bad = |why: &str| ApiError::BadRequest(format!("Idempotency-Key: {why}"));
+    let text = value
+        .to_str()
+        .map_err(|_| bad("expected visible ASCII"))?
+        .trim();
+    let key = text
+        .strip_prefix('"')
+        .and_then(|t| t.strip_suffix('"'))
+        .unwrap_or(text);
+    if key.is_empty() || key.len() > MAX_IDEMPOTENCY_KEY_BYTES {
+        return Err(bad(&format!(
+            "expected 1 to {MAX_IDEMPOTENCY_KEY_BYTES} bytes, found {}",
+            key.len()
+        )));
+    }
+    Ok(Some(key.to_owned()))
+}
+
+/// The `Idempotency-Key` request header.
+const IDEMPOTENCY_KEY: &str = "idempotency-key";
+
+/// SHA-256 (hex) of what an upload stores: its metadata, its pipeline and
+/// its body. `wait` is left out: it changes the answer, not the upload.
+fn request_fingerprint(query: &IngestQuery, body: &[u8]) -> String {
+    let metadata = serde_json::json!([
+        query.species,
+        query.external_id,
+        query.acquired,
+        query.source,
+        query.crs,
+        query.mode.unwrap_or_default().name(),
+    ]);
+    let mut hash = Sha256::new();
+    hash.update(metadata.to_string().as_bytes());
+    hash.update([0]);
+    hash.update(body);
+    hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The upload first stored under `idempotency`'s key, if any; a 422 when
+/// that upload was another request (draft-ietf-httpapi-idempotency-key-header
+/// §2.7: a key reused with a different payload).
+async fn first_upload(
+    state: &AppState,
+    idempotency: Option<&Idempotency>,
+) -> Result<Option<Ingested>, ApiError> {
+    let Some(idempotency) = idempotency else {
+        return Ok(None);
+    };
+    match state.store.ingested_by_key(&idempotency.key).await? {
+        Some((first, fingerprint)) if fingerprint == idempotency.fingerprint => {
+            tracing::info!(tree = %first.tree_id, job = %first.job_id, "repeated upload answered from its key");
+            Ok(Some(first))
+        }
+        Some(_) => Err(ApiError::IdempotencyKeyReused(format!(
+            "Idempotency-Key {:?} was used for another upload (other metadata or body): send \
+             a new key for a new upload",
+            idempotency.key
+        ))),
+        None => Ok(None),
+    }
 }
 
 /// How long a `wait=true` upload may wait for its job: 80 % of the request
@@ -396,6 +520,54 @@ pub(super) async fn delete_tree(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn headers(key: &str) -> HeaderMap {
+        let mut headers = HeaderMap::new();
+        headers.insert(IDEMPOTENCY_KEY, HeaderValue::from_str(key).unwrap());
+        headers
+    }
+
+    #[test]
+    fn an_idempotency_key_is_a_token_or_a_quoted_string_of_at_most_256_bytes() {
+        let key = |text: &str| idempotency_key(&headers(text)).map_err(|e| e.to_string());
+        assert_eq!(idempotency_key(&HeaderMap::new()).unwrap(), None);
+        assert_eq!(key("abc-1").unwrap().as_deref(), Some("abc-1"));
+        assert_eq!(key("\"abc-1\"").unwrap().as_deref(), Some("abc-1"));
+        assert_eq!(key(&"k".repeat(256)).unwrap().map(|k| k.len()), Some(256));
+        assert!(key(&"k".repeat(257)).unwrap_err().contains("found 257"));
+        assert!(key("").is_err());
+        assert!(key("\"\"").is_err());
+    }
+
+    #[test]
+    fn the_fingerprint_covers_metadata_mode_and_body_but_not_wait() {
+        let query = |species: &str, mode, wait| IngestQuery {
+            species: Some(species.into()),
+            external_id: Some("t1".into()),
+            acquired: None,
+            source: None,
+            crs: None,
+            mode,
+            wait,
+        };
+        let base = request_fingerprint(&query("Quercus", None, false), b"1 2 3");
+        assert_eq!(base.len(), 64);
+        assert_eq!(
+            base,
+            request_fingerprint(&query("Quercus", None, true), b"1 2 3")
+        );
+        assert_eq!(
+            base,
+            request_fingerprint(&query("Quercus", Some(Mode::Auto), false), b"1 2 3")
+        );
+        for other in [
+            request_fingerprint(&query("Quercus", None, false), b"1 2 4"),
+            request_fingerprint(&query("Betula", None, false), b"1 2 3"),
+            request_fingerprint(&query("Quercus", Some(Mode::Dense), false), b"1 2 3"),
+        ] {
+            assert_ne!(base, other);
+        }
+    }
 
     #[test]
     fn the_wait_budget_counts_from_the_requests_arrival() {

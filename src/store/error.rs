@@ -16,6 +16,12 @@ pub enum StoreError {
 }
 
 impl StoreError {
+    /// True when a unique index refused the write: for an ingest with an
+    /// idempotency key, another upload with the same key committed first.
+    pub fn is_unique_violation(&self) -> bool {
+        matches!(self, StoreError::Database(sqlx::Error::Database(e)) if e.is_unique_violation())
+    }
+
     /// True when the database could not be reached at all (as opposed to a
     /// query failing), so that the service is unavailable rather than broken.
     pub fn is_unavailable(&self) -> bool {

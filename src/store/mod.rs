@@ -27,7 +27,9 @@ mod error;
 mod rows;
 
 pub use error::StoreError;
-pub use rows::{JobRow, JobState, ModelColumn, NewIngest, NewModel, TreeFilter, TreeRow};
+pub use rows::{
+    Idempotency, JobRow, JobState, ModelColumn, NewIngest, NewModel, TreeFilter, TreeRow,
+};
 
 /// The database behind the service.
 #[derive(Debug, Clone)]
@@ -161,7 +163,8 @@ impl Store {
             .await?;
             sqlx::query(
                 "INSERT INTO scans (id, tree_id, acquired, source, format, point_count, cloud_laz, \
-                 created_at_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
+                 created_at_ms, idempotency_key, request_sha256) \
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
             )
             .bind(scan_id)
             .bind(tree_id)
@@ -171,6 +174,8 @@ impl Store {
             .bind(new.point_count)
             .bind(&new.cloud_laz)
             .bind(now)
+            .bind(new.idempotency.as_ref().map(|i| &i.key))
+            .bind(new.idempotency.as_ref().map(|i| &i.fingerprint))
             .execute(&mut *tx)
             .await?;
             sqlx::query(
@@ -192,6 +197,32 @@ impl Store {
             scan_id,
             job_id,
         })
+    }
+
+    /// The upload stored under an idempotency key, with the fingerprint of
+    /// the request it came with; `None` when no scan holds the key.
+    pub async fn ingested_by_key(
+        &self,
+        key: &str,
+    ) -> Result<Option<(Ingested, String)>, StoreError> {
+        let row: Option<(Uuid, Uuid, Uuid, Option<String>)> = on_pool!(self, pool => {
+            sqlx::query_as(
+                "SELECT scans.tree_id, scans.id, jobs.id, scans.request_sha256 \
+                 FROM scans JOIN jobs ON jobs.scan_id = scans.id \
+                 WHERE scans.idempotency_key = $1 ORDER BY jobs.created_at_ms LIMIT 1",
+            )
+            .bind(key)
+            .fetch_optional(pool)
+            .await?
+        });
+        Ok(row.map(|(tree_id, scan_id, job_id, fingerprint)| {
+            let ingested = Ingested {
+                tree_id,
+                scan_id,
+                job_id,
+            };
+            (ingested, fingerprint.unwrap_or_default())
+        }))
     }
 
     /// One tree.

@@ -153,6 +153,19 @@ pub struct NewIngest {
     pub cloud_laz: Vec<u8>,
     /// Reconstruction options, JSON.
     pub options: String,
+    /// The upload's idempotency key, if it sent one.
+    pub idempotency: Option<Idempotency>,
+}
+
+/// An upload's `Idempotency-Key` and the fingerprint of its request: sent
+/// again with the same fingerprint, the key finds the first upload
+/// ([`crate::store::Store::ingested_by_key`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Idempotency {
+    /// The client's key.
+    pub key: String,
+    /// SHA-256 of the request's metadata and body, hex.
+    pub fingerprint: String,
 }
 
 /// What a finished reconstruction stores.
