@@ -7,3 +7,5 @@ ALTER TABLE scans ADD COLUMN idempotency_key TEXT;
 ALTER TABLE scans ADD COLUMN request_sha256 TEXT;
 CREATE UNIQUE INDEX scans_idempotency_key ON scans (idempotency_key)
     WHERE idempotency_key IS NOT NULL;
+-- The key's lookup joins the scan's job.
+CREATE INDEX jobs_scan ON jobs (scan_id);

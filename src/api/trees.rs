@@ -100,7 +100,7 @@ pub(super) struct IngestQuery {
             headers(("Location" = String, description = "The job"))),
         (status = 201, description = "With `wait=true`: reconstructed", body = Tree,
             headers(("Location" = String, description = "The tree"))),
-        (status = 400, description = "Bad query", body = Problem, content_type = "application/problem+json"),
+        (status = 400, description = "Bad query or `Idempotency-Key` header", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "The body is compressed (`Content-Encoding`) or a multipart form: send the file itself",
@@ -134,13 +134,20 @@ pub(super) async fn create_tree(
     })?;
     check_acquired(query.acquired.as_deref())?;
     check_metadata_lengths(&query)?;
-    let idempotency = key.map(|key| Idempotency {
-        fingerprint: request_fingerprint(&query, &body),
-        key,
-    });
+    let idempotency = match key {
+        Some(key) => Some(Idempotency {
+            fingerprint: request_fingerprint(&query, body.clone()).await?,
+            key,
+        }),
+        None => None,
+    };
     let wait = query.wait;
     let ingested = match first_upload(&state, idempotency.as_ref()).await? {
-        Some(first) => first,
+        Some(first) => {
+            // A repeat stores nothing: its body's memory is free at once.
+            drop((body, memory));
+            first
+        }
         None => {
             let (decoded, memory) = decode_upload(&state, body, memory).await?;
             clock.begin_storing();
@@ -224,36 +231,49 @@ async fn answer_upload(
 const MAX_IDEMPOTENCY_KEY_BYTES: usize = 256;
 
 /// The upload's `Idempotency-Key` header (draft-ietf-httpapi-idempotency-key-header):
-/// a token, or a quoted string as the draft writes it, of 1 to
-/// [`MAX_IDEMPOTENCY_KEY_BYTES`] visible ASCII bytes.
+/// one header, a token or a quoted string as the draft writes it, of 1 to
+/// [`MAX_IDEMPOTENCY_KEY_BYTES`] visible ASCII bytes (no spaces, no
+/// escapes).
 fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
-    let Some(value) = headers.get(IDEMPOTENCY_KEY) else {
+    let mut values = headers.get_all(IDEMPOTENCY_KEY).iter();
+    let Some(value) = values.next() else {
         return Ok(None);
     };
-    let bad = |why: &str| ApiError::BadRequest(format!("Idempotency-Key: {why}"));
-    let text = value
-        .to_str()
-        .map_err(|_| bad("expected visible ASCII"))?
-        .trim();
-    let key = text
-        .strip_prefix('"')
-        .and_then(|t| t.strip_suffix('"'))
-        .unwrap_or(text);
+    let bad = |why: String| ApiError::BadRequest(format!("Idempotency-Key: {why}"));
+    if values.next().is_some() {
+        return Err(bad("sent more than once".into()));
+    }
+    let text = value.as_bytes().trim_ascii();
+    let key = match text.strip_prefix(b"\"") {
+        Some(quoted) => quoted
+            .strip_suffix(b"\"")
+            .ok_or_else(|| bad("a quoted key must end with a quote".into()))?,
+        None => text,
+    };
     if key.is_empty() || key.len() > MAX_IDEMPOTENCY_KEY_BYTES {
-        return Err(bad(&format!(
+        return Err(bad(format!(
             "expected 1 to {MAX_IDEMPOTENCY_KEY_BYTES} bytes, found {}",
             key.len()
         )));
     }
-    Ok(Some(key.to_owned()))
+    if let Some(&byte) = key
+        .iter()
+        .find(|b| !b.is_ascii_graphic() || **b == b'"' || **b == b'\\')
+    {
+        return Err(bad(format!(
+            "expected visible ASCII without quotes or backslashes, found byte {byte:#04x}"
+        )));
+    }
+    Ok(Some(String::from_utf8_lossy(key).into_owned()))
 }
 
 /// The `Idempotency-Key` request header.
 const IDEMPOTENCY_KEY: &str = "idempotency-key";
 
 /// SHA-256 (hex) of what an upload stores: its metadata, its pipeline and
-/// its body. `wait` is left out: it changes the answer, not the upload.
-fn request_fingerprint(query: &IngestQuery, body: &[u8]) -> String {
+/// its body. `wait` is left out: it changes the answer, not the upload. The
+/// body (up to `--max-body-bytes`) is hashed off the async workers.
+async fn request_fingerprint(query: &IngestQuery, body: Bytes) -> Result<String, ApiError> {
     let metadata = serde_json::json!([
         query.species,
         query.external_id,
@@ -261,12 +281,17 @@ fn request_fingerprint(query: &IngestQuery, body: &[u8]) -> String {
         query.source,
         query.crs,
         query.mode.unwrap_or_default().name(),
-    ]);
-    let mut hash = Sha256::new();
-    hash.update(metadata.to_string().as_bytes());
-    hash.update([0]);
-    hash.update(body);
-    hash.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    ])
+    .to_string();
+    let digest = tokio::task::spawn_blocking(move || {
+        let mut hash = Sha256::new();
+        hash.update(metadata.as_bytes());
+        hash.update([0]);
+        hash.update(&body);
+        hash.finalize()
+    })
+    .await?;
+    Ok(digest.iter().map(|b| format!("{b:02x}")).collect())
 }
 
 /// The upload first stored under `idempotency`'s key, if any; a 422 when
@@ -537,10 +562,21 @@ mod tests {
         assert!(key(&"k".repeat(257)).unwrap_err().contains("found 257"));
         assert!(key("").is_err());
         assert!(key("\"\"").is_err());
+        assert!(key("\"abc").unwrap_err().contains("must end with a quote"));
+        assert!(key("a b").unwrap_err().contains("0x20"));
+        assert!(key("a\\\"b").is_err());
+        let mut twice = headers("a");
+        twice.append(IDEMPOTENCY_KEY, HeaderValue::from_static("b"));
+        assert!(
+            idempotency_key(&twice)
+                .unwrap_err()
+                .to_string()
+                .contains("more than once")
+        );
     }
 
-    #[test]
-    fn the_fingerprint_covers_metadata_mode_and_body_but_not_wait() {
+    #[tokio::test]
+    async fn the_fingerprint_covers_metadata_mode_and_body_but_not_wait() {
         let query = |species: &str, mode, wait| IngestQuery {
             species: Some(species.into()),
             external_id: Some("t1".into()),
@@ -550,20 +586,20 @@ mod tests {
             mode,
             wait,
         };
-        let base = request_fingerprint(&query("Quercus", None, false), b"1 2 3");
+        let hash = |query: IngestQuery, body: &'static [u8]| async move {
+            request_fingerprint(&query, Bytes::from_static(body))
+                .await
+                .unwrap()
+        };
+        let base = hash(query("Quercus", None, false), b"1 2 3").await;
         assert_eq!(base.len(), 64);
-        assert_eq!(
-            base,
-            request_fingerprint(&query("Quercus", None, true), b"1 2 3")
-        );
-        assert_eq!(
-            base,
-            request_fingerprint(&query("Quercus", Some(Mode::Auto), false), b"1 2 3")
-        );
+        assert_eq!(base, hash(query("Quercus", None, true), b"1 2 3").await);
+        let auto = hash(query("Quercus", Some(Mode::Auto), false), b"1 2 3").await;
+        assert_eq!(base, auto);
         for other in [
-            request_fingerprint(&query("Quercus", None, false), b"1 2 4"),
-            request_fingerprint(&query("Betula", None, false), b"1 2 3"),
-            request_fingerprint(&query("Quercus", Some(Mode::Dense), false), b"1 2 3"),
+            hash(query("Quercus", None, false), b"1 2 4").await,
+            hash(query("Betula", None, false), b"1 2 3").await,
+            hash(query("Quercus", Some(Mode::Dense), false), b"1 2 3").await,
         ] {
             assert_ne!(base, other);
         }
