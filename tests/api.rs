@@ -304,25 +304,18 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
             let mut cfg = config(&url);
             cfg.workers = Some(0);
             let srv = TestServer::start(cfg).await;
-            let send = |body: &[u8], key: &str| {
-                srv.http
-                    .post(srv.url("/v1/trees?mode=dense&species=Betula"))
-                    .header("Idempotency-Key", key)
-                    .body(body.to_vec())
-                    .send()
-            };
-            let job_of = |res: reqwest::Response| async move {
-                assert_eq!(res.status(), 202);
-                let job: Value = res.json().await.unwrap();
-                job["id"].as_str().unwrap().to_owned()
-            };
-            let first = job_of(send(&scan, "etl-7/tree-1").await.unwrap()).await;
-            let again = job_of(send(&scan, "etl-7/tree-1").await.unwrap()).await;
-            let quoted = job_of(send(&scan, "\"etl-7/tree-1\"").await.unwrap()).await;
+            let first = job_of(upload_with_key(&srv, &scan, "etl-7/tree-1").await.unwrap()).await;
+            let again = job_of(upload_with_key(&srv, &scan, "etl-7/tree-1").await.unwrap()).await;
+            let quoted = job_of(
+                upload_with_key(&srv, &scan, "\"etl-7/tree-1\"")
+                    .await
+                    .unwrap(),
+            )
+            .await;
             assert_eq!((&again, &quoted), (&first, &first));
             assert_eq!(tree_count(&srv).await, 1);
 
-            let reused = send(&other, "etl-7/tree-1").await.unwrap();
+            let reused = upload_with_key(&srv, &other, "etl-7/tree-1").await.unwrap();
             let problem = assert_problem(reused, 422).await;
             assert!(
                 problem["type"]
@@ -331,17 +324,80 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
                     .ends_with("idempotency-key-reused"),
                 "{problem}"
             );
-            let (a, b) = tokio::join!(send(&other, "etl-7/tree-2"), send(&other, "etl-7/tree-2"));
+            let (a, b) = tokio::join!(
+                upload_with_key(&srv, &other, "etl-7/tree-2"),
+                upload_with_key(&srv, &other, "etl-7/tree-2")
+            );
             let (a, b) = (job_of(a.unwrap()).await, job_of(b.unwrap()).await);
             assert_eq!(a, b);
             assert_ne!(a, first);
             assert_eq!(tree_count(&srv).await, 2);
-            assert_problem(send(&scan, "").await.unwrap(), 400).await;
+            assert_problem(upload_with_key(&srv, &scan, "").await.unwrap(), 400).await;
             assert_eq!(tree_count(&srv).await, 2);
             srv.stop().await;
         }
     })
     .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
+    let scan = synthetic_scan(ORIGIN, 17);
+    let other = synthetic_scan(ORIGIN, 18);
+    on_both(|url| {
+        let (scan, other) = (scan.clone(), other.clone());
+        async move {
+            let mut cfg = config(&url);
+            cfg.workers = Some(0);
+            cfg.idempotency_key_ttl_secs = 2.0;
+            let srv = TestServer::start(cfg).await;
+            let key = "etl-8/tree-1";
+            let first = job_of(upload_with_key(&srv, &scan, key).await.unwrap()).await;
+            assert_problem(upload_with_key(&srv, &other, key).await.unwrap(), 422).await;
+            tokio::time::sleep(Duration::from_millis(2100)).await;
+
+            let second = job_of(upload_with_key(&srv, &other, key).await.unwrap()).await;
+            assert_ne!(second, first);
+            assert_eq!(tree_count(&srv).await, 2);
+            assert_eq!(
+                job_of(upload_with_key(&srv, &other, key).await.unwrap()).await,
+                second
+            );
+            let problem =
+                assert_problem(upload_with_key(&srv, &scan, key).await.unwrap(), 422).await;
+            assert!(
+                problem["type"]
+                    .as_str()
+                    .unwrap()
+                    .ends_with("idempotency-key-reused"),
+                "the key now belongs to the second upload: {problem}"
+            );
+            assert_eq!(tree_count(&srv).await, 2);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+/// Uploads `body` as a dense birch scan with an `Idempotency-Key`.
+async fn upload_with_key(
+    srv: &TestServer,
+    body: &[u8],
+    key: &str,
+) -> reqwest::Result<reqwest::Response> {
+    srv.http
+        .post(srv.url("/v1/trees?mode=dense&species=Betula"))
+        .header("Idempotency-Key", key)
+        .body(body.to_vec())
+        .send()
+        .await
+}
+
+/// The id of the job in a 202 answer to an upload.
+async fn job_of(res: reqwest::Response) -> String {
+    assert_eq!(res.status(), 202);
+    let job: Value = res.json().await.unwrap();
+    job["id"].as_str().unwrap().to_owned()
 }
 
 /// Takes the write lock of the database at `url` (PostgreSQL: the `trees`

@@ -20,6 +20,10 @@ const DEFAULT_CACHE_BYTES: usize = 256 * 1024 * 1024;
 /// Default job time limit: 15 minutes, many times what a 20-million-point
 /// scan takes.
 const DEFAULT_JOB_TIME_LIMIT_SECS: f64 = 900.0;
+/// Default lifetime of an upload's `Idempotency-Key`: a day, as the
+/// draft's examples and common payment APIs keep theirs; an ETL retries
+/// within minutes, and may reuse its keys in the next run.
+const DEFAULT_IDEMPOTENCY_KEY_TTL_SECS: f64 = 86_400.0;
 
 /// How `silva serve` runs. Every flag can also be set by its environment
 /// variable; flags win.
@@ -86,6 +90,17 @@ pub struct Config {
         value_parser = seconds
     )]
     pub job_time_limit_secs: f64,
+    /// How long an upload's `Idempotency-Key` holds, in seconds from the
+    /// upload (0: while its scan exists). Within it a repeat of the upload
+    /// is answered from the first one and another upload with the key is
+    /// refused; past it the key is free for a new upload.
+    #[arg(
+        long,
+        env = "SILVA_IDEMPOTENCY_KEY_TTL_SECS",
+        default_value_t = DEFAULT_IDEMPOTENCY_KEY_TTL_SECS,
+        value_parser = seconds
+    )]
+    pub idempotency_key_ttl_secs: f64,
     /// Bytes of generated meshes and documents kept in memory for downloads.
     #[arg(long, env = "SILVA_CACHE_BYTES", default_value_t = DEFAULT_CACHE_BYTES)]
     pub cache_bytes: usize,
@@ -108,6 +123,7 @@ impl Config {
             db_max_connections: DEFAULT_DB_CONNECTIONS,
             job_lease_secs: DEFAULT_LEASE_SECS,
             job_time_limit_secs: DEFAULT_JOB_TIME_LIMIT_SECS,
+            idempotency_key_ttl_secs: DEFAULT_IDEMPOTENCY_KEY_TTL_SECS,
             cache_bytes: DEFAULT_CACHE_BYTES,
         }
     }
@@ -122,9 +138,13 @@ impl Config {
     /// The job time limit; `None` for 0 (or one too long to represent):
     /// no limit.
     pub fn job_time_limit(&self) -> Option<Duration> {
-        (self.job_time_limit_secs > 0.0)
-            .then(|| Duration::try_from_secs_f64(self.job_time_limit_secs).ok())
-            .flatten()
+        unless_zero(self.job_time_limit_secs)
+    }
+
+    /// How long an `Idempotency-Key` holds; `None` for 0 (or one too long
+    /// to represent): as long as its scan exists.
+    pub fn idempotency_key_ttl(&self) -> Option<Duration> {
+        unless_zero(self.idempotency_key_ttl_secs)
     }
 
     /// Worker count, the CPU count unless set, at most 1,024: a
@@ -171,6 +191,14 @@ const MAX_CONCURRENT_REQUESTS: usize = 1 << 20;
 /// Longest request time limit, in seconds (a day).
 const MAX_REQUEST_TIMEOUT_SECS: u64 = 86_400;
 
+/// `secs` as a duration; `None` for 0 (no limit) or for one too long to
+/// represent.
+fn unless_zero(secs: f64) -> Option<Duration> {
+    (secs > 0.0)
+        .then(|| Duration::try_from_secs_f64(secs).ok())
+        .flatten()
+}
+
 /// Parses a non-negative, finite number of seconds.
 fn seconds(text: &str) -> Result<f64, String> {
     let secs: f64 = text.parse().map_err(|e| format!("{e}"))?;
@@ -194,6 +222,26 @@ mod tests {
         }
         // The `wait=true` deadline can be taken from it.
         let _ = std::time::Instant::now() + config.request_timeout();
+    }
+
+    #[test]
+    fn zero_or_an_unrepresentable_time_means_no_limit() {
+        let mut config = Config::new("sqlite::memory:");
+        assert_eq!(config.job_time_limit(), Some(Duration::from_secs(900)));
+        assert_eq!(
+            config.idempotency_key_ttl(),
+            Some(Duration::from_secs(86_400))
+        );
+        for (secs, expected) in [
+            (0.0, None),
+            (1e30, None),
+            (0.5, Some(Duration::from_millis(500))),
+        ] {
+            config.job_time_limit_secs = secs;
+            config.idempotency_key_ttl_secs = secs;
+            assert_eq!(config.job_time_limit(), expected);
+            assert_eq!(config.idempotency_key_ttl(), expected);
+        }
     }
 
     #[test]

@@ -88,7 +88,9 @@ pub(super) struct IngestQuery {
             description = "Makes a retry safe: an upload sent again with the same key and the same \
                            metadata and body is answered with the first upload's job (or tree) and \
                            stores nothing new; the same key with another upload is a 422. A key \
-                           lives as long as its scan (draft-ietf-httpapi-idempotency-key-header)"),
+                           holds for `--idempotency-key-ttl-secs` (default a day) while its scan \
+                           exists, then is free for a new upload \
+                           (draft-ietf-httpapi-idempotency-key-header)"),
     ),
     request_body(
         content = Binary,
@@ -138,6 +140,7 @@ pub(super) async fn create_tree(
         Some(key) => Some(Idempotency {
             fingerprint: request_fingerprint(&query, body.clone()).await?,
             key,
+            not_before_ms: key_lifetime_start(state.config.idempotency_key_ttl()),
         }),
         None => None,
     };
@@ -267,6 +270,15 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     Ok(Some(String::from_utf8_lossy(key).into_owned()))
 }
 
+/// The start of the lifetime of a key sent now: uploads stored before it
+/// no longer hold their keys (`i64::MIN` without a lifetime).
+fn key_lifetime_start(ttl: Option<Duration>) -> i64 {
+    ttl.map_or(i64::MIN, |ttl| {
+        let ttl_ms = i64::try_from(ttl.as_millis()).unwrap_or(i64::MAX);
+        crate::store::now_ms().saturating_sub(ttl_ms)
+    })
+}
+
 /// The `Idempotency-Key` request header.
 const IDEMPOTENCY_KEY: &str = "idempotency-key";
 
@@ -304,7 +316,7 @@ async fn first_upload(
     let Some(idempotency) = idempotency else {
         return Ok(None);
     };
-    match state.store.ingested_by_key(&idempotency.key).await? {
+    match state.store.ingested_by_key(idempotency).await? {
         Some((first, fingerprint)) if fingerprint == idempotency.fingerprint => {
             tracing::info!(tree = %first.tree_id, job = %first.job_id, "repeated upload answered from its key");
             Ok(Some(first))

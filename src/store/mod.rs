@@ -161,6 +161,18 @@ impl Store {
             .bind(now)
             .fetch_one(&mut *tx)
             .await?;
+            if let Some(idempotency) = &new.idempotency {
+                // An expired key passes to this upload (the unique index
+                // allows one holder).
+                sqlx::query(
+                    "UPDATE scans SET idempotency_key = NULL, request_sha256 = NULL \
+                     WHERE idempotency_key = $1 AND created_at_ms < $2",
+                )
+                .bind(&idempotency.key)
+                .bind(idempotency.not_before_ms)
+                .execute(&mut *tx)
+                .await?;
+            }
             sqlx::query(
                 "INSERT INTO scans (id, tree_id, acquired, source, format, point_count, cloud_laz, \
                  created_at_ms, idempotency_key, request_sha256) \
@@ -199,19 +211,23 @@ impl Store {
         })
     }
 
-    /// The upload stored under an idempotency key, with the fingerprint of
-    /// the request it came with; `None` when no scan holds the key.
+    /// The upload stored under an idempotency key within its lifetime, with
+    /// the fingerprint of the request it came with; `None` when no scan
+    /// holds the key, or the one that does was stored before
+    /// `not_before_ms`.
     pub async fn ingested_by_key(
         &self,
-        key: &str,
+        idempotency: &Idempotency,
     ) -> Result<Option<(Ingested, String)>, StoreError> {
         let row: Option<(Uuid, Uuid, Uuid, Option<String>)> = on_pool!(self, pool => {
             sqlx::query_as(
                 "SELECT scans.tree_id, scans.id, jobs.id, scans.request_sha256 \
                  FROM scans JOIN jobs ON jobs.scan_id = scans.id \
-                 WHERE scans.idempotency_key = $1 ORDER BY jobs.created_at_ms LIMIT 1",
+                 WHERE scans.idempotency_key = $1 AND scans.created_at_ms >= $2 \
+                 ORDER BY jobs.created_at_ms LIMIT 1",
             )
-            .bind(key)
+            .bind(&idempotency.key)
+            .bind(idempotency.not_before_ms)
             .fetch_optional(pool)
             .await?
         });

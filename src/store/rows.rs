@@ -166,6 +166,10 @@ pub struct Idempotency {
     pub key: String,
     /// SHA-256 of the request's metadata and body, hex.
     pub fingerprint: String,
+    /// When the key's lifetime began, in ms since the Unix epoch: an upload
+    /// stored before it no longer holds the key (`i64::MIN`: keys never
+    /// expire).
+    pub not_before_ms: i64,
 }
 
 /// What a finished reconstruction stores.
