@@ -2,7 +2,7 @@
 //! of an area as a streamed CityJSONSeq (`/v1/cityjson`).
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::Duration;
 
 use axum::Router;
 use axum::body::Body;
@@ -14,6 +14,7 @@ use futures::StreamExt;
 use glam::DVec3;
 use serde::Deserialize;
 use serde_json::{Map, Value};
+use tokio::time::Instant;
 use utoipa::IntoParams;
 use uuid::Uuid;
 
@@ -171,7 +172,7 @@ pub(super) async fn cityjson_seq(
 ) -> Result<Response, ApiError> {
     let lod = parse_lod(query.lod.unwrap_or(2))?;
     let bbox = parse_bbox(&query.bbox)?;
-    let deadline = Instant::now() + state.config.request_timeout() * EXPORT_TIME_LIMITS;
+    let deadline = Deadline::after(state.config.request_timeout() * EXPORT_TIME_LIMITS);
     let mut filter = TreeFilter {
         bbox: Some(bbox),
         crs: query.crs,
@@ -195,22 +196,14 @@ pub(super) async fn cityjson_seq(
     let translate = seq_translate(filter.bbox.unwrap_or_default());
     let header = cityjson::seq_header(translate, filter.crs.as_deref(), None).to_string() + "\n";
     let first_lines = render(&state, first, lod, translate).await;
-    let rest = futures::stream::unfold((after, filter), move |(after, filter)| {
-        let state = state.clone();
+    let rest = pages_within(after, deadline, move |after| {
+        let (state, filter) = (state.clone(), filter.clone());
         async move {
             let filter = TreeFilter {
-                after: Some(after?),
+                after: Some(after),
                 ..filter
             };
-            if Instant::now() > deadline {
-                let limit = state.config.request_timeout() * EXPORT_TIME_LIMITS;
-                let err = format!(
-                    "the export ran past its time limit of {limit:?}; ask for a smaller bbox"
-                );
-                return Some((Err(stream_error(&err)), (None, filter)));
-            }
-            let (lines, after) = next_page(&state, &filter, lod, translate).await;
-            Some((lines, (after, filter)))
+            next_page(&state, &filter, lod, translate).await
         }
     });
     // Fused: the compression layer polls the body again after its end, and
@@ -223,6 +216,49 @@ pub(super) async fn cityjson_seq(
         Body::from_stream(body),
     )
         .into_response())
+}
+
+/// When an export must end, and how long it was given (for the message).
+#[derive(Debug, Clone, Copy)]
+struct Deadline {
+    at: Instant,
+    limit: Duration,
+}
+
+impl Deadline {
+    fn after(limit: Duration) -> Self {
+        Self {
+            at: Instant::now() + limit,
+            limit,
+        }
+    }
+}
+
+/// The pages of an export after the first, from `after` on: each fetched
+/// by `fetch` (its lines, and where the page after it starts) when the
+/// body wants more, until a page says none follow. A page wanted past the
+/// deadline ends the stream with an error instead (a cut-off body).
+fn pages_within<F, Fut>(
+    after: Option<Uuid>,
+    deadline: Deadline,
+    fetch: F,
+) -> impl futures::Stream<Item = Result<String, std::io::Error>>
+where
+    F: FnMut(Uuid) -> Fut,
+    Fut: std::future::Future<Output = (Result<String, std::io::Error>, Option<Uuid>)>,
+{
+    futures::stream::unfold((after, fetch), move |(after, mut fetch)| async move {
+        let after = after?;
+        if Instant::now() > deadline.at {
+            let err = format!(
+                "the export ran past its time limit of {:?}; ask for a smaller bbox",
+                deadline.limit
+            );
+            return Some((Err(stream_error(&err)), (None, fetch)));
+        }
+        let (lines, next) = fetch(after).await;
+        Some((lines, (next, fetch)))
+    })
 }
 
 /// The stream's `translate`: the bbox's lower corner, millimetre-snapped so
@@ -310,4 +346,53 @@ async fn render(
 fn stream_error(err: &dyn std::fmt::Display) -> std::io::Error {
     tracing::error!(error = %err, "CityJSONSeq export stopped");
     std::io::Error::other(err.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    /// Pages that each take 4 s under a 10 s limit: the pages wanted at
+    /// 0, 4 and 8 s come; the one wanted at 12 s ends the stream with the
+    /// error that names the limit, and is not fetched (without the limit
+    /// six pages would come).
+    #[tokio::test(start_paused = true)]
+    async fn an_export_ends_at_the_first_page_wanted_past_its_time_limit() {
+        let fetched = AtomicUsize::new(0);
+        let deadline = Deadline::after(Duration::from_secs(10));
+        let pages = pages_within(Some(Uuid::nil()), deadline, |_| async {
+            let n = fetched.fetch_add(1, Ordering::SeqCst);
+            tokio::time::sleep(Duration::from_secs(4)).await;
+            (Ok(format!("page {n}\n")), (n < 5).then(Uuid::now_v7))
+        });
+        let items: Vec<_> = pages.collect().await;
+        let lines: Vec<_> = items.iter().map(|i| i.as_ref().ok().cloned()).collect();
+        let pages = ["page 0\n", "page 1\n", "page 2\n"].map(|p| Some(p.to_owned()));
+        assert_eq!(lines[..3], pages);
+        assert_eq!(items.len(), 4);
+        let err = items[3].as_ref().unwrap_err().to_string();
+        assert!(err.contains("time limit of 10s"), "{err}");
+        assert_eq!(fetched.load(Ordering::SeqCst), 3);
+    }
+
+    /// An export whose pages end within its limit streams them all.
+    #[tokio::test(start_paused = true)]
+    async fn an_export_within_its_time_limit_ends_after_its_last_page() {
+        let deadline = Deadline::after(Duration::from_secs(10));
+        let pages = pages_within(Some(Uuid::nil()), deadline, |after| async move {
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            let next = (after.as_u128() < 4).then(|| Uuid::from_u128(after.as_u128() + 1));
+            (Ok(format!("after {}\n", after.as_u128())), next)
+        });
+        let lines: Vec<String> = pages.map(Result::unwrap).collect().await;
+        assert_eq!(
+            lines.concat(),
+            "after 0\nafter 1\nafter 2\nafter 3\nafter 4\n"
+        );
+        let none = pages_within(None, deadline, |_| async { unreachable!() });
+        let none: Vec<Result<String, std::io::Error>> = none.collect().await;
+        assert!(none.is_empty());
+    }
 }
