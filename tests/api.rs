@@ -293,7 +293,8 @@ async fn tree_count(srv: &TestServer) -> usize {
 /// An upload sent again with the same `Idempotency-Key` is stored once: the
 /// repeat (plain, quoted as the draft writes keys, or two at once) answers
 /// with the first upload's job; the same key with another body is a 422;
-/// another key stores another tree; an empty key is a 400.
+/// another key stores another tree; an empty key is a 400; once the first
+/// upload's tree is deleted, the key is free.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
     let scan = synthetic_scan(ORIGIN, 17);
@@ -334,12 +335,37 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
             assert_eq!(tree_count(&srv).await, 2);
             assert_problem(upload_with_key(&srv, &scan, "").await.unwrap(), 400).await;
             assert_eq!(tree_count(&srv).await, 2);
+
+            // Deleting the first upload's tree deletes its scan, and the key
+            // with it: the key is free for another upload.
+            let job: Value = srv
+                .get(&format!("/v1/jobs/{first}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            let tree = job["tree_id"].as_str().unwrap();
+            let res = srv
+                .http
+                .delete(srv.url(&format!("/v1/trees/{tree}")))
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 204);
+            let after_delete =
+                job_of(upload_with_key(&srv, &other, "etl-7/tree-1").await.unwrap()).await;
+            assert_ne!(after_delete, first);
+            assert_eq!(tree_count(&srv).await, 2);
             srv.stop().await;
         }
     })
     .await;
 }
 
+/// A key holds for its lifetime (2 s here): within it another upload
+/// with the key is refused; past it the key passes to the next upload that
+/// sends it, which repeats then replay, and the first upload's body is now
+/// the other one.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
     let scan = synthetic_scan(ORIGIN, 17);
