@@ -305,10 +305,20 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
             let mut cfg = config(&url);
             cfg.workers = Some(0);
             let srv = TestServer::start(cfg).await;
-            let first = job_of(upload_with_key(&srv, &scan, "etl-7/tree-1").await.unwrap()).await;
-            let again = job_of(upload_with_key(&srv, &scan, "etl-7/tree-1").await.unwrap()).await;
+            let first = job_of(
+                upload_with_key(&srv, "species=Betula", &scan, "etl-7/tree-1")
+                    .await
+                    .unwrap(),
+            )
+            .await;
+            let again = job_of(
+                upload_with_key(&srv, "species=Betula", &scan, "etl-7/tree-1")
+                    .await
+                    .unwrap(),
+            )
+            .await;
             let quoted = job_of(
-                upload_with_key(&srv, &scan, "\"etl-7/tree-1\"")
+                upload_with_key(&srv, "species=Betula", &scan, "\"etl-7/tree-1\"")
                     .await
                     .unwrap(),
             )
@@ -316,7 +326,9 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
             assert_eq!((&again, &quoted), (&first, &first));
             assert_eq!(tree_count(&srv).await, 1);
 
-            let reused = upload_with_key(&srv, &other, "etl-7/tree-1").await.unwrap();
+            let reused = upload_with_key(&srv, "species=Betula", &other, "etl-7/tree-1")
+                .await
+                .unwrap();
             let problem = assert_problem(reused, 422).await;
             assert!(
                 problem["type"]
@@ -326,14 +338,20 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
                 "{problem}"
             );
             let (a, b) = tokio::join!(
-                upload_with_key(&srv, &other, "etl-7/tree-2"),
-                upload_with_key(&srv, &other, "etl-7/tree-2")
+                upload_with_key(&srv, "species=Betula", &other, "etl-7/tree-2"),
+                upload_with_key(&srv, "species=Betula", &other, "etl-7/tree-2")
             );
             let (a, b) = (job_of(a.unwrap()).await, job_of(b.unwrap()).await);
             assert_eq!(a, b);
             assert_ne!(a, first);
             assert_eq!(tree_count(&srv).await, 2);
-            assert_problem(upload_with_key(&srv, &scan, "").await.unwrap(), 400).await;
+            assert_problem(
+                upload_with_key(&srv, "species=Betula", &scan, "")
+                    .await
+                    .unwrap(),
+                400,
+            )
+            .await;
             assert_eq!(tree_count(&srv).await, 2);
 
             // Deleting the first upload's tree deletes its scan, and the key
@@ -352,10 +370,41 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
                 .await
                 .unwrap();
             assert_eq!(res.status(), 204);
-            let after_delete =
-                job_of(upload_with_key(&srv, &other, "etl-7/tree-1").await.unwrap()).await;
+            let after_delete = job_of(
+                upload_with_key(&srv, "species=Betula", &other, "etl-7/tree-1")
+                    .await
+                    .unwrap(),
+            )
+            .await;
             assert_ne!(after_delete, first);
             assert_eq!(tree_count(&srv).await, 2);
+            srv.stop().await;
+        }
+    })
+    .await;
+}
+
+/// A repeated `wait=true` upload answers as the first did once its job has
+/// ended: 201 with the first upload's tree, and nothing more stored.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_repeated_upload_with_wait_answers_with_the_first_uploads_tree() {
+    let scan = synthetic_scan(ORIGIN, 19);
+    on_both(|url| {
+        let scan = scan.clone();
+        async move {
+            let srv = TestServer::start(config(&url)).await;
+            let mut trees = Vec::new();
+            for _ in 0..2 {
+                let res = upload_with_key(&srv, "wait=true", &scan, "etl-9/tree-1")
+                    .await
+                    .unwrap();
+                assert_eq!(res.status(), 201);
+                let tree: Value = res.json().await.unwrap();
+                assert!(tree["model_id"].is_string(), "{tree}");
+                trees.push((tree["id"].clone(), tree["model_id"].clone()));
+            }
+            assert_eq!(trees[0], trees[1]);
+            assert_eq!(tree_count(&srv).await, 1);
             srv.stop().await;
         }
     })
@@ -378,19 +427,45 @@ async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
             cfg.idempotency_key_ttl_secs = 2.0;
             let srv = TestServer::start(cfg).await;
             let key = "etl-8/tree-1";
-            let first = job_of(upload_with_key(&srv, &scan, key).await.unwrap()).await;
-            assert_problem(upload_with_key(&srv, &other, key).await.unwrap(), 422).await;
+            let first = job_of(
+                upload_with_key(&srv, "species=Betula", &scan, key)
+                    .await
+                    .unwrap(),
+            )
+            .await;
+            assert_problem(
+                upload_with_key(&srv, "species=Betula", &other, key)
+                    .await
+                    .unwrap(),
+                422,
+            )
+            .await;
             tokio::time::sleep(Duration::from_millis(2100)).await;
 
-            let second = job_of(upload_with_key(&srv, &other, key).await.unwrap()).await;
+            let second = job_of(
+                upload_with_key(&srv, "species=Betula", &other, key)
+                    .await
+                    .unwrap(),
+            )
+            .await;
             assert_ne!(second, first);
             assert_eq!(tree_count(&srv).await, 2);
             assert_eq!(
-                job_of(upload_with_key(&srv, &other, key).await.unwrap()).await,
+                job_of(
+                    upload_with_key(&srv, "species=Betula", &other, key)
+                        .await
+                        .unwrap()
+                )
+                .await,
                 second
             );
-            let problem =
-                assert_problem(upload_with_key(&srv, &scan, key).await.unwrap(), 422).await;
+            let problem = assert_problem(
+                upload_with_key(&srv, "species=Betula", &scan, key)
+                    .await
+                    .unwrap(),
+                422,
+            )
+            .await;
             assert!(
                 problem["type"]
                     .as_str()
@@ -405,14 +480,15 @@ async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
     .await;
 }
 
-/// Uploads `body` as a dense birch scan with an `Idempotency-Key`.
+/// Uploads `body` as a dense scan with `query` and an `Idempotency-Key`.
 async fn upload_with_key(
     srv: &TestServer,
+    query: &str,
     body: &[u8],
     key: &str,
 ) -> reqwest::Result<reqwest::Response> {
     srv.http
-        .post(srv.url("/v1/trees?mode=dense&species=Betula"))
+        .post(srv.url(&format!("/v1/trees?mode=dense&{query}")))
         .header("Idempotency-Key", key)
         .body(body.to_vec())
         .send()
