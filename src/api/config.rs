@@ -90,10 +90,12 @@ pub struct Config {
         value_parser = seconds
     )]
     pub job_time_limit_secs: f64,
-    /// How long an upload's `Idempotency-Key` holds, in seconds from the
-    /// upload (0: while its scan exists). Within it a repeat of the upload
-    /// is answered from the first one and another upload with the key is
-    /// refused; past it the key is free for a new upload.
+    /// How long an upload's `Idempotency-Key` holds, in seconds from when
+    /// the upload began to store (0: while its scan exists). Within it a
+    /// repeat of the upload is answered from the first one and another
+    /// upload with the key is refused; past it the key is free for a new
+    /// upload. Keep it well above the request time limit: a write held up
+    /// longer than this lifetime may hand the key on as soon as it is made.
     #[arg(
         long,
         env = "SILVA_IDEMPOTENCY_KEY_TTL_SECS",

@@ -84,7 +84,8 @@ pub(super) struct IngestQuery {
     tag = "trees",
     params(
         IngestQuery,
-        ("Idempotency-Key" = Option<String>, Header, max_length = 256,
+        ("Idempotency-Key" = Option<String>, Header, min_length = 1, max_length = 258,
+            pattern = r#"^([!#-\[\]-~]{1,256}|"[!#-\[\]-~]{1,256}")$"#,
             description = "Makes a retry safe: an upload sent again with the same key and the same \
                            metadata and body is answered with the first upload's job (or tree) and \
                            stores nothing new; the same key with another upload is a 422. A key \
@@ -190,7 +191,15 @@ async fn store_upload(
     let ingested = match state.store.ingest(&new).await {
         Ok(ingested) => ingested,
         Err(e) if e.is_unique_violation() && new.idempotency.is_some() => {
-            return first_upload(state, new.idempotency.as_ref())
+            // Another upload with the key committed while this one stored:
+            // that one came first, however old its scan's time (taken when
+            // its write began, which a held-up write can put past the key's
+            // lifetime by now).
+            let winner = new.idempotency.map(|i| Idempotency {
+                not_before_ms: i64::MIN,
+                ..i
+            });
+            return first_upload(state, winner.as_ref())
                 .await?
                 .ok_or_else(|| e.into());
         }
@@ -274,7 +283,8 @@ fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
 /// no longer hold their keys (`i64::MIN` without a lifetime).
 fn key_lifetime_start(ttl: Option<Duration>) -> i64 {
     ttl.map_or(i64::MIN, |ttl| {
-        let ttl_ms = i64::try_from(ttl.as_millis()).unwrap_or(i64::MAX);
+        // Rounded up: a lifetime under a millisecond is not none.
+        let ttl_ms = i64::try_from(ttl.as_nanos().div_ceil(1_000_000)).unwrap_or(i64::MAX);
         crate::store::now_ms().saturating_sub(ttl_ms)
     })
 }
