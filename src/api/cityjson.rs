@@ -134,6 +134,7 @@ pub(super) struct SeqQuery {
     /// CRS of the export (default: that of the first tree found). Trees in
     /// another CRS are not part of the stream, since one stream has one
     /// transform and reference system.
+    #[param(pattern = r"^[^\u0000]*$")]
     crs: Option<String>,
 }
 

@@ -40,12 +40,14 @@ pub(super) struct ListQuery {
     #[param(value_type = Option<super::schema::BboxText>, inline)]
     bbox: Option<String>,
     /// Exact species name.
+    #[param(pattern = r"^[^\u0000]*$")]
     species: Option<String>,
     /// Smallest height in metres.
     min_height: Option<f64>,
     /// Largest height in metres.
     max_height: Option<f64>,
     /// Exact CRS, e.g. `EPSG:28992`.
+    #[param(pattern = r"^[^\u0000]*$")]
     crs: Option<String>,
     /// Page size, 1 to 10000 (default 100).
     #[param(minimum = 1, maximum = 10000)]

@@ -47,20 +47,20 @@ pub(super) fn routes(config: &Config) -> Router<Arc<AppState>> {
 #[into_params(parameter_in = Query)]
 pub(super) struct IngestQuery {
     /// Species name, e.g. `Quercus robur`.
-    #[param(max_length = 256)]
+    #[param(max_length = 256, pattern = r"^[^\u0000]*$")]
     species: Option<String>,
     /// The inventory's own id; uploading again with the same id adds a scan
     /// to that tree (a rescan) and replaces its model.
-    #[param(max_length = 256)]
+    #[param(max_length = 256, pattern = r"^[^\u0000]*$")]
     external_id: Option<String>,
     /// Acquisition date, `YYYY-MM-DD`.
     #[param(format = Date)]
     acquired: Option<String>,
     /// Where the scan comes from, e.g. `TLS` or `AHN4`.
-    #[param(max_length = 256)]
+    #[param(max_length = 256, pattern = r"^[^\u0000]*$")]
     source: Option<String>,
     /// CRS of the coordinates, e.g. `EPSG:28992`.
-    #[param(max_length = 256)]
+    #[param(max_length = 256, pattern = r"^[^\u0000]*$")]
     crs: Option<String>,
     /// Reconstruction pipeline: `auto` (default: chosen from point density
     /// and trunk coverage), `dense` (terrestrial/mobile) or `airborne`.
