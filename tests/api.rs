@@ -305,24 +305,9 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
             let mut cfg = config(&url);
             cfg.workers = Some(0);
             let srv = TestServer::start(cfg).await;
-            let first = job_of(
-                upload_with_key(&srv, "species=Betula", &scan, "etl-7/tree-1")
-                    .await
-                    .unwrap(),
-            )
-            .await;
-            let again = job_of(
-                upload_with_key(&srv, "species=Betula", &scan, "etl-7/tree-1")
-                    .await
-                    .unwrap(),
-            )
-            .await;
-            let quoted = job_of(
-                upload_with_key(&srv, "species=Betula", &scan, "\"etl-7/tree-1\"")
-                    .await
-                    .unwrap(),
-            )
-            .await;
+            let first = keyed_job(&srv, &scan, "etl-7/tree-1").await;
+            let again = keyed_job(&srv, &scan, "etl-7/tree-1").await;
+            let quoted = keyed_job(&srv, &scan, "\"etl-7/tree-1\"").await;
             assert_eq!((&again, &quoted), (&first, &first));
             assert_eq!(tree_count(&srv).await, 1);
 
@@ -370,12 +355,7 @@ async fn an_upload_repeated_with_its_idempotency_key_is_stored_once() {
                 .await
                 .unwrap();
             assert_eq!(res.status(), 204);
-            let after_delete = job_of(
-                upload_with_key(&srv, "species=Betula", &other, "etl-7/tree-1")
-                    .await
-                    .unwrap(),
-            )
-            .await;
+            let after_delete = keyed_job(&srv, &other, "etl-7/tree-1").await;
             assert_ne!(after_delete, first);
             assert_eq!(tree_count(&srv).await, 2);
             srv.stop().await;
@@ -427,12 +407,7 @@ async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
             cfg.workers = Some(0);
             let srv = TestServer::start(cfg).await;
             let key = "etl-8/tree-1";
-            let first = job_of(
-                upload_with_key(&srv, "species=Betula", &scan, key)
-                    .await
-                    .unwrap(),
-            )
-            .await;
+            let first = keyed_job(&srv, &scan, key).await;
             assert_problem(
                 upload_with_key(&srv, "species=Betula", &other, key)
                     .await
@@ -442,23 +417,10 @@ async fn an_idempotency_key_is_free_for_a_new_upload_after_its_lifetime() {
             .await;
             age_scans(&url, Duration::from_secs(2 * 86_400)).await;
 
-            let second = job_of(
-                upload_with_key(&srv, "species=Betula", &other, key)
-                    .await
-                    .unwrap(),
-            )
-            .await;
+            let second = keyed_job(&srv, &other, key).await;
             assert_ne!(second, first);
             assert_eq!(tree_count(&srv).await, 2);
-            assert_eq!(
-                job_of(
-                    upload_with_key(&srv, "species=Betula", &other, key)
-                        .await
-                        .unwrap()
-                )
-                .await,
-                second
-            );
+            assert_eq!(keyed_job(&srv, &other, key).await, second);
             let problem = assert_problem(
                 upload_with_key(&srv, "species=Betula", &scan, key)
                     .await
@@ -546,6 +508,16 @@ async fn upload_with_key(
         .body(body.to_vec())
         .send()
         .await
+}
+
+/// The job of a birch upload with an `Idempotency-Key` (a 202).
+async fn keyed_job(srv: &TestServer, body: &[u8], key: &str) -> String {
+    job_of(
+        upload_with_key(srv, "species=Betula", body, key)
+            .await
+            .unwrap(),
+    )
+    .await
 }
 
 /// The id of the job in a 202 answer to an upload.
