@@ -462,10 +462,15 @@ async fn a_key_taken_by_a_held_up_write_past_its_lifetime_is_no_server_error() {
             for round in 0..6 {
                 let key = format!("held-up/{round}");
                 let lock = hold_write_lock(&url, Duration::from_millis(1000)).await;
+                let start = std::time::Instant::now();
                 let (ra, rb) = tokio::join!(upload_with_key(&srv, "", &a, &key), async {
                     tokio::time::sleep(Duration::from_millis(500)).await;
                     upload_with_key(&srv, "", &b, &key).await
                 });
+                assert!(
+                    start.elapsed() >= Duration::from_millis(900),
+                    "round {round}: the uploads were not held up by the lock"
+                );
                 let statuses = [ra.unwrap().status().as_u16(), rb.unwrap().status().as_u16()];
                 assert!(
                     statuses.iter().all(|s| [202, 422].contains(s)) && statuses.contains(&202),

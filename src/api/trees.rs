@@ -190,7 +190,7 @@ async fn store_upload(
     };
     let ingested = match state.store.ingest(&new).await {
         Ok(ingested) => ingested,
-        Err(e) if e.is_unique_violation() && new.idempotency.is_some() => {
+        Err(e) if e.is_idempotency_key_taken() && new.idempotency.is_some() => {
             // Another upload with the key committed while this one stored:
             // that one came first, however old its scan's time (taken when
             // its write began, which a held-up write can put past the key's

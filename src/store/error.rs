@@ -16,10 +16,17 @@ pub enum StoreError {
 }
 
 impl StoreError {
-    /// True when a unique index refused the write: for an ingest with an
-    /// idempotency key, another upload with the same key committed first.
-    pub fn is_unique_violation(&self) -> bool {
-        matches!(self, StoreError::Database(sqlx::Error::Database(e)) if e.is_unique_violation())
+    /// True when the unique index on scans' idempotency keys refused an
+    /// ingest: another upload with the same key committed first. Other
+    /// unique violations are not this (PostgreSQL names the index, SQLite
+    /// the column).
+    pub fn is_idempotency_key_taken(&self) -> bool {
+        let StoreError::Database(sqlx::Error::Database(e)) = self else {
+            return false;
+        };
+        e.is_unique_violation()
+            && (e.constraint() == Some("scans_idempotency_key")
+                || e.message().contains("scans.idempotency_key"))
     }
 
     /// True when the database could not be reached at all (as opposed to a
