@@ -20,9 +20,9 @@ const DEFAULT_CACHE_BYTES: usize = 256 * 1024 * 1024;
 /// Default job time limit: 15 minutes, many times what a 20-million-point
 /// scan takes.
 const DEFAULT_JOB_TIME_LIMIT_SECS: f64 = 900.0;
-/// Default lifetime of an upload's `Idempotency-Key`: a day, as the
-/// draft's examples and common payment APIs keep theirs; an ETL retries
-/// within minutes, and may reuse its keys in the next run.
+/// Default lifetime of an upload's `Idempotency-Key`: a day (Stripe's
+/// API, for one, keeps its keys at least that long). An ETL retries within
+/// minutes, and may reuse its keys in its next run.
 const DEFAULT_IDEMPOTENCY_KEY_TTL_SECS: f64 = 86_400.0;
 
 /// How `silva serve` runs. Every flag can also be set by its environment
