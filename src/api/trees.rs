@@ -105,6 +105,8 @@ pub(super) struct IngestQuery {
             headers(("Location" = String, description = "The tree"))),
         (status = 400, description = "Bad query or `Idempotency-Key` header", body = Problem, content_type = "application/problem+json"),
         (status = 401, description = "Missing or wrong API key", body = Problem, content_type = "application/problem+json"),
+        (status = 409, description = "The tree, or the upload that first held the `Idempotency-Key`, was deleted while this request ran: send it again",
+            body = Problem, content_type = "application/problem+json"),
         (status = 413, description = "Body over the size limit", body = Problem, content_type = "application/problem+json"),
         (status = 415, description = "The body is compressed (`Content-Encoding`) or a multipart form: send the file itself",
             body = Problem, content_type = "application/problem+json"),
@@ -199,9 +201,15 @@ async fn store_upload(
                 not_before_ms: i64::MIN,
                 ..i
             });
-            return first_upload(state, winner.as_ref())
-                .await?
-                .ok_or_else(|| e.into());
+            // The winner may be gone again (its tree deleted in between):
+            // the key is free, and a retry stores this upload.
+            return first_upload(state, winner.as_ref()).await?.ok_or_else(|| {
+                ApiError::Conflict(
+                    "another upload with this Idempotency-Key was stored and deleted \
+                     while this one was being stored; send it again"
+                        .into(),
+                )
+            });
         }
         Err(e) => return Err(e.into()),
     };
