@@ -1322,6 +1322,13 @@ async fn cityjson_seq_streams_the_trees_of_an_area() {
 /// with a one-internode skeleton: no reconstruction, so that a test can
 /// fill several pages quickly.
 async fn store_tree(store: &silva::store::Store, at: DVec3, crs: &str) {
+    let mut skeleton = Skeleton::new(silva::Anchor::at(at), 0.2);
+    skeleton.add_child(silva::NodeId::ROOT, glam::Vec3::new(0.0, 0.0, 5.0), 0.1);
+    store_skeleton(store, &skeleton, crs).await;
+}
+
+/// Stores `skeleton` as a finished tree in `crs`, as [`store_tree`] does.
+async fn store_skeleton(store: &silva::store::Store, skeleton: &Skeleton, crs: &str) {
     let ingest = silva::store::NewIngest {
         crs: Some(crs.into()),
         format: "xyz".into(),
@@ -1336,15 +1343,14 @@ async fn store_tree(store: &silva::store::Store, at: DVec3, crs: &str) {
         .await
         .unwrap()
         .expect("the job just queued");
-    let mut skeleton = Skeleton::new(silva::Anchor::at(at), 0.2);
-    skeleton.add_child(silva::NodeId::ROOT, glam::Vec3::new(0.0, 0.0, 5.0), 0.1);
+    let at = skeleton.anchor().origin;
     let model = silva::store::NewModel {
         skeleton: skeleton.to_json(),
         lsystem: "{}".into(),
         chaincode: vec![0],
         parameters: "{}".into(),
         metrics: "{}".into(),
-        internodes: 1,
+        internodes: skeleton.internode_count() as i64,
         location: at.to_array(),
         crs: None,
         height_m: 5.0,
@@ -1467,6 +1473,128 @@ async fn cityjson_seq_exports_free_their_slots() {
         srv.stop().await;
     })
     .await;
+}
+
+/// A CityJSONSeq export may run ten request time limits; a page wanted
+/// after that ends the stream, cut off. Here a page of four is held up by
+/// a lock on the trees table, taken once the first page has been answered:
+/// the second page (the first is about 5 MB, too large to leave before the
+/// client reads it), or the third if the second fitted in the socket's
+/// buffers. Under a request limit of 1 s, a hold of 8.5 s lets the whole
+/// export through, and one of 10.5 s makes it refuse the page after the
+/// one held up. PostgreSQL only: its table lock holds reads up, while
+/// SQLite's write-ahead log lets them through.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cityjson_seq_ends_an_export_past_ten_request_limits() {
+    const TREES: u32 = 350;
+    let what = "cityjson_seq_ends_an_export_past_ten_request_limits";
+    let Some(db) = common::TestDb::postgres(what).await else {
+        return;
+    };
+    let url = db.url();
+    db.run(async move {
+        let store = silva::store::Store::connect(&url, 2).await.unwrap();
+        for i in 0..TREES {
+            let at = ORIGIN + DVec3::new(f64::from(i % 20), f64::from(i / 20), 0.0);
+            store_skeleton(&store, &helix(at, 40), "EPSG:28992").await;
+        }
+        store.close().await;
+        let mut cfg = config(&url);
+        cfg.request_timeout_secs = 1;
+        let srv = TestServer::start(cfg).await;
+        let (lines, cut_off) = export_held_up(&srv, &url, Duration::from_millis(8_500)).await;
+        assert!(!cut_off, "cut off after {lines} lines within ten limits");
+        assert_eq!(lines, 1 + TREES as usize, "the header and every tree");
+        let (lines, cut_off) = export_held_up(&srv, &url, Duration::from_millis(10_500)).await;
+        assert!(cut_off, "the export ended in full ({lines} lines)");
+        // The last page sent may be cut off on its way.
+        assert!(
+            (1 + 100..1 + TREES as usize).contains(&lines),
+            "{lines} whole lines: not the header and the first page, or all"
+        );
+        srv.stop().await;
+    })
+    .await;
+}
+
+/// Exports the trees around [`ORIGIN`] at LOD 3 from `srv` while the trees
+/// table of the database at `url` is locked against reads for `hold`, from
+/// the moment the export is answered: its whole lines, and whether it was
+/// cut off. A connection of its own: a pooled one's receive buffer, grown
+/// by an earlier download, would take in more pages before the lock.
+async fn export_held_up(srv: &TestServer, url: &str, hold: Duration) -> (usize, bool) {
+    let (x, y) = (ORIGIN.x, ORIGIN.y);
+    let bbox = format!("{},{},{},{}", x - 1.0, y - 1.0, x + 30.0, y + 30.0);
+    let path = format!("/v1/cityjson?bbox={bbox}&lod=3");
+    let mut res = reqwest::get(srv.url(&path)).await.expect("GET");
+    assert_eq!(res.status(), 200);
+    let lock = hold_reads(url, hold).await;
+    let read = async {
+        let mut body = Vec::new();
+        loop {
+            match res.chunk().await {
+                Ok(Some(bytes)) => body.extend_from_slice(&bytes),
+                Ok(None) => return (body, false),
+                Err(_) => return (body, true),
+            }
+        }
+    };
+    let ((body, cut_off), waited) = tokio::join!(read, a_read_waits_on_a_lock(url));
+    lock.await.unwrap();
+    assert!(waited, "no page was held up by the lock");
+    (body.iter().filter(|&&b| b == b'\n').count(), cut_off)
+}
+
+/// A tree at `at` whose skeleton winds up a helix of `internodes`
+/// internodes: a large CityJSON feature at LOD 3.
+fn helix(at: DVec3, internodes: u16) -> Skeleton {
+    let mut skeleton = Skeleton::new(silva::Anchor::at(at), 0.2);
+    let mut parent = silva::NodeId::ROOT;
+    for i in 1..=internodes {
+        let turn = f32::from(i) * 0.5;
+        let position = glam::Vec3::new(0.5 * turn.cos(), 0.5 * turn.sin(), 0.25 * f32::from(i));
+        let radius = 0.2 - 0.15 * f32::from(i) / f32::from(internodes);
+        parent = skeleton.add_child(parent, position, radius);
+    }
+    skeleton
+}
+
+/// Locks the trees table of the PostgreSQL database at `url` against reads
+/// as well (`ACCESS EXCLUSIVE`) and lets it go `hold` later, in the
+/// returned task.
+async fn hold_reads(url: &str, hold: Duration) -> tokio::task::JoinHandle<()> {
+    use sqlx::{Connection, Executor};
+    let mut conn = sqlx::PgConnection::connect(url).await.unwrap();
+    conn.execute("BEGIN").await.unwrap();
+    conn.execute("LOCK TABLE trees IN ACCESS EXCLUSIVE MODE")
+        .await
+        .unwrap();
+    tokio::spawn(async move {
+        tokio::time::sleep(hold).await;
+        conn.execute("COMMIT").await.unwrap();
+    })
+}
+
+/// Whether a query for a page of trees with their skeletons waits on a
+/// lock in the PostgreSQL database at `url` within 5 s.
+async fn a_read_waits_on_a_lock(url: &str) -> bool {
+    use sqlx::Connection;
+    let mut conn = sqlx::PgConnection::connect(url).await.unwrap();
+    for _ in 0..100 {
+        let waiting: i64 = sqlx::query_scalar(
+            "SELECT count(*) FROM pg_stat_activity \
+             WHERE datname = current_database() AND wait_event_type = 'Lock' \
+             AND query LIKE '%AS skeleton FROM trees%'",
+        )
+        .fetch_one(&mut conn)
+        .await
+        .unwrap();
+        if waiting > 0 {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    false
 }
 
 /// Found by schemathesis, whose client asks for gzip: the compression layer
