@@ -84,7 +84,7 @@ pub(super) struct IngestQuery {
     tag = "trees",
     params(
         IngestQuery,
-        ("Idempotency-Key" = Option<String>, Header, min_length = 1, max_length = 258,
+        ("Idempotency-Key" = Option<String>, Header, nullable = false, min_length = 1, max_length = 258,
             pattern = r#"^([!#-\[\]-~]{1,256}|"[!#-\[\]-~]{1,256}")$"#,
             description = "Makes a retry safe: an upload sent again with the same key and the same \
                            metadata and body is answered with the first upload's job (or tree) and \
