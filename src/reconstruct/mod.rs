@@ -90,7 +90,8 @@ pub const STRAY_GAP_M: f32 = 30.0;
 /// keeps every real apex and catches a return less than about 1.9 m over
 /// an oak's or a birch's highest (median; 3.6 m over a poplar's, 0.7 m
 /// over a pine's). Measured with `tools/top_return_gaps.py --model`
-/// (seeds 1–150, and 1–50 with `--density 60` and `--leaves on`);
+/// (seeds 1–150; 1–50 with `--density 60`, leaf-off; 1–50 with
+/// `--leaves on`, at most 1.06);
 /// ahn3_delft, tiny, tree1 and tree13 reach 0.02–0.15.
 pub const ISOLATED_GROUPS: IsolatedGroups = IsolatedGroups {
     min_gap_m: 3.0,
